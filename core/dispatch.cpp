@@ -1,0 +1,31 @@
+// SPDX-License-Identifier: MIT
+#include "core/dispatch.h"
+
+namespace g2l {
+
+void require_cpu(const char* op, std::initializer_list<const Tensor*> ts) {
+    for (const Tensor* t : ts) {
+        if (t && t->defined())
+            G2L_CHECK(t->device().is_cpu(), op, ": no CUDA kernel for this op yet; tensor ",
+                      t->desc(), " must be on cpu (move it with .to(Device::cpu()))");
+    }
+}
+
+void require_same(const char* op, std::initializer_list<const Tensor*> ts) {
+    const Tensor* first = nullptr;
+    for (const Tensor* t : ts) {
+        if (!t || !t->defined()) continue;
+        if (!first) { first = t; continue; }
+        G2L_CHECK(t->dtype() == first->dtype() && t->device() == first->device(), op,
+                  ": tensors must share dtype and device, got ", first->desc(), " and ",
+                  t->desc());
+    }
+}
+
+void require_rank(const char* op, const char* name, const Tensor& t, int64_t rank,
+                  const char* layout) {
+    G2L_CHECK(t.defined(), op, ": ", name, " is undefined");
+    G2L_CHECK(t.dim() == rank, op, ": expected ", name, " as ", layout, ", got ", t.desc());
+}
+
+}  // namespace g2l

@@ -1,0 +1,38 @@
+// SPDX-License-Identifier: MIT
+// Deterministic random numbers, identical on every platform and compiler (std distributions are
+// implementation-defined, so we do not use them). xoshiro256** seeded by splitmix64.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+namespace g2l {
+
+class Rng {
+public:
+    explicit Rng(uint64_t seed = 0x9E3779B97F4A7C15ull) { reseed(seed); }
+    void reseed(uint64_t seed);
+
+    /// Next raw 64-bit value.
+    uint64_t next_u64();
+    /// Uniform double in [0, 1).
+    double uniform() { return double(next_u64() >> 11) * 0x1.0p-53; }
+    /// Uniform double in [lo, hi).
+    double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
+    /// Uniform integer in [0, n) (n > 0), unbiased.
+    uint64_t below(uint64_t n);
+    /// Uniform integer in [lo, hi) (hi > lo).
+    int64_t randint(int64_t lo, int64_t hi) { return lo + int64_t(below(uint64_t(hi - lo))); }
+    /// Standard normal (Box-Muller, no cached second value so the state alone defines the stream).
+    double normal();
+    double normal(double mean, double stddev) { return mean + stddev * normal(); }
+
+    /// The full state, for checkpoints (resume continues the exact stream).
+    std::array<uint64_t, 4> state() const { return s_; }
+    void set_state(const std::array<uint64_t, 4>& s) { s_ = s; }
+
+private:
+    std::array<uint64_t, 4> s_{};
+};
+
+}  // namespace g2l

@@ -1,0 +1,34 @@
+// SPDX-License-Identifier: MIT
+#include "kernels/bias.h"
+
+namespace g2l::kernels {
+
+template <class T>
+void add_bias_bcn_cpu(T* y, const T* bias, int64_t B, int64_t C, int64_t N) {
+#pragma omp parallel for schedule(static) if (B * C * N > 32768)
+    for (int64_t bc = 0; bc < B * C; ++bc) {
+        const T v = bias[bc % C];
+        T* row = y + bc * N;
+        for (int64_t n = 0; n < N; ++n) row[n] += v;
+    }
+}
+
+template <class T>
+void bias_grad_bcn_cpu(const T* dy, T* db, int64_t B, int64_t C, int64_t N, bool accumulate) {
+#pragma omp parallel for schedule(static) if (B * C * N > 32768)
+    for (int64_t c = 0; c < C; ++c) {
+        T s = 0;
+        for (int64_t b = 0; b < B; ++b) {
+            const T* row = dy + (b * C + c) * N;
+            for (int64_t n = 0; n < N; ++n) s += row[n];
+        }
+        db[c] = accumulate ? db[c] + s : s;
+    }
+}
+
+template void add_bias_bcn_cpu<float>(float*, const float*, int64_t, int64_t, int64_t);
+template void add_bias_bcn_cpu<double>(double*, const double*, int64_t, int64_t, int64_t);
+template void bias_grad_bcn_cpu<float>(const float*, float*, int64_t, int64_t, int64_t, bool);
+template void bias_grad_bcn_cpu<double>(const double*, double*, int64_t, int64_t, int64_t, bool);
+
+}  // namespace g2l::kernels

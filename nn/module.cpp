@@ -1,0 +1,112 @@
+// SPDX-License-Identifier: MIT
+#include "nn/module.h"
+
+#include <cmath>
+
+#include "core/autograd.h"
+
+namespace g2l::nn {
+
+void Module::check_new_name(const std::string& name) const {
+    G2L_CHECK(!name.empty() && name.find('.') == std::string::npos,
+              "Module: bad member name '", name, "' (non-empty, no dots)");
+    for (const auto& p : params_) G2L_CHECK(p.first != name, "Module: duplicate name '", name, "'");
+    for (const auto& p : buffers_) G2L_CHECK(p.first != name, "Module: duplicate name '", name, "'");
+    for (const auto& p : children_) G2L_CHECK(p.first != name, "Module: duplicate name '", name, "'");
+}
+
+Tensor Module::register_parameter(const std::string& name, Tensor t) {
+    check_new_name(name);
+    G2L_CHECK(t.defined(), "Module: parameter '", name, "' is undefined");
+    t.set_requires_grad(true);
+    params_.emplace_back(name, t);
+    return t;
+}
+
+Tensor Module::register_buffer(const std::string& name, Tensor t) {
+    check_new_name(name);
+    G2L_CHECK(t.defined(), "Module: buffer '", name, "' is undefined");
+    buffers_.emplace_back(name, t);
+    return t;
+}
+
+void Module::add_child(const std::string& name, std::shared_ptr<Module> m) {
+    check_new_name(name);
+    G2L_CHECK(m != nullptr, "Module: child '", name, "' is null");
+    children_.emplace_back(name, std::move(m));
+}
+
+void Module::collect(const std::string& prefix, bool params, NamedTensors& out) const {
+    for (const auto& [n, t] : params ? params_ : buffers_) out.emplace_back(prefix + n, t);
+    for (const auto& [n, c] : children_) c->collect(prefix + n + ".", params, out);
+}
+
+NamedTensors Module::named_parameters() const {
+    NamedTensors out;
+    collect("", true, out);
+    return out;
+}
+
+NamedTensors Module::named_buffers() const {
+    NamedTensors out;
+    collect("", false, out);
+    return out;
+}
+
+std::vector<Tensor> Module::parameters() const {
+    std::vector<Tensor> out;
+    for (auto& p : named_parameters()) out.push_back(p.second);
+    return out;
+}
+
+std::map<std::string, Tensor> Module::state_dict() const {
+    std::map<std::string, Tensor> sd;
+    for (auto& p : named_parameters()) sd.emplace(p.first, p.second);
+    for (auto& p : named_buffers()) sd.emplace(p.first, p.second);
+    return sd;
+}
+
+void Module::load_state_dict(const std::map<std::string, Tensor>& sd, bool strict) {
+    std::map<std::string, Tensor> mine = state_dict();
+    std::string missing, unexpected, mismatched;
+    for (const auto& [name, t] : mine) {
+        auto it = sd.find(name);
+        if (it == sd.end()) { missing += " " + name; continue; }
+        if (it->second.shape() != t.shape() || it->second.dtype() != t.dtype())
+            mismatched += cat(" ", name, " (model ", t.desc(), ", given ", it->second.desc(), ")");
+    }
+    for (const auto& [name, t] : sd)
+        if (!mine.count(name)) unexpected += " " + name;
+    G2L_CHECK(mismatched.empty() && (!strict || (missing.empty() && unexpected.empty())),
+              "load_state_dict:", missing.empty() ? "" : " missing:" + missing,
+              unexpected.empty() ? "" : " unexpected:" + unexpected,
+              mismatched.empty() ? "" : " shape/dtype mismatch:" + mismatched);
+    autograd::NoGradGuard no_grad;
+    for (auto& [name, t] : mine) {
+        auto it = sd.find(name);
+        if (it != sd.end()) t.copy_(it->second);
+    }
+}
+
+void Module::train(bool on) {
+    training_ = on;
+    for (auto& c : children_) c.second->train(on);
+}
+
+int64_t Module::num_parameters() const {
+    int64_t n = 0;
+    for (auto& p : named_parameters()) n += p.second.numel();
+    return n;
+}
+
+void Module::zero_grad() {
+    for (auto& p : named_parameters()) p.second.zero_grad();
+}
+
+Tensor uniform_init(const Shape& shape, int64_t fan_in, Rng& rng, DType dtype) {
+    G2L_CHECK(fan_in > 0, "uniform_init: fan_in must be > 0, got ", fan_in);
+    const double bound = 1.0 / std::sqrt(double(fan_in));
+    return Tensor::rand(shape, rng, -bound, bound, dtype);
+}
+
+}  // namespace g2l::nn

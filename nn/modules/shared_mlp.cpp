@@ -1,0 +1,65 @@
+// SPDX-License-Identifier: MIT
+#include "nn/modules/shared_mlp.h"
+
+#include "nn/ops/activation.h"
+
+namespace g2l::nn {
+
+namespace {
+void check_widths(const char* what, const std::vector<int64_t>& w) {
+    G2L_CHECK(w.size() >= 2, what, ": needs at least {in, out} widths, got ", w.size());
+    for (int64_t v : w) G2L_CHECK(v > 0, what, ": widths must be > 0, got ", v);
+}
+}  // namespace
+
+SharedMlp::SharedMlp(const std::vector<int64_t>& widths, Rng& rng, bool batch_norm,
+                     bool relu_last)
+    : widths_(widths), relu_last_(relu_last) {
+    check_widths("SharedMlp", widths);
+    for (size_t i = 0; i + 1 < widths.size(); ++i) {
+        const std::string k = std::to_string(i + 1);
+        convs_.push_back(register_module("conv" + k,
+                                         std::make_shared<Conv1x1>(widths[i], widths[i + 1], rng)));
+        if (batch_norm)
+            bns_.push_back(register_module("bn" + k, std::make_shared<BatchNorm>(widths[i + 1])));
+    }
+}
+
+Tensor SharedMlp::forward(const Tensor& x, std::vector<Tensor>* taps) {
+    G2L_CHECK(x.dim() == 3 && x.size(1) == widths_.front(), "SharedMlp: expected x as [B, ",
+              widths_.front(), ", N], got ", x.desc());
+    Tensor h = x;
+    for (size_t i = 0; i < convs_.size(); ++i) {
+        h = convs_[i]->forward(h);
+        if (!bns_.empty()) h = bns_[i]->forward(h);
+        if (i + 1 < convs_.size() || relu_last_) h = relu(h);
+        if (taps) taps->push_back(h);
+    }
+    return h;
+}
+
+Mlp::Mlp(const std::vector<int64_t>& widths, Rng& rng, bool batch_norm, bool relu_last)
+    : widths_(widths), relu_last_(relu_last) {
+    check_widths("Mlp", widths);
+    for (size_t i = 0; i + 1 < widths.size(); ++i) {
+        const std::string k = std::to_string(i + 1);
+        fcs_.push_back(register_module("fc" + k,
+                                       std::make_shared<Linear>(widths[i], widths[i + 1], rng)));
+        if (batch_norm)
+            bns_.push_back(register_module("bn" + k, std::make_shared<BatchNorm>(widths[i + 1])));
+    }
+}
+
+Tensor Mlp::forward(const Tensor& x) {
+    G2L_CHECK(x.dim() == 2 && x.size(1) == widths_.front(), "Mlp: expected x as [B, ",
+              widths_.front(), "], got ", x.desc());
+    Tensor h = x;
+    for (size_t i = 0; i < fcs_.size(); ++i) {
+        h = fcs_[i]->forward(h);
+        if (!bns_.empty()) h = bns_[i]->forward(h);
+        if (i + 1 < fcs_.size() || relu_last_) h = relu(h);
+    }
+    return h;
+}
+
+}  // namespace g2l::nn

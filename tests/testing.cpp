@@ -1,0 +1,38 @@
+// SPDX-License-Identifier: MIT
+#include "testing.h"
+
+#include <catch2/catch.hpp>
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+#include <random>
+
+namespace fs = std::filesystem;
+
+namespace g2l::testing {
+
+std::string fixture_dir() { return G2L_TEST_DATA_DIR; }
+
+std::optional<std::string> shared_data_dir() {
+    if (const char* env = std::getenv("G2L_SHARED_DATA")) {
+        if (fs::is_directory(env)) return std::string(env);
+    }
+    if (fs::is_directory(G2L_SHARED_DATA_DIR)) return std::string(G2L_SHARED_DATA_DIR);
+    return std::nullopt;
+}
+
+void skip_without_shared_data(const std::string& what) {
+    std::cerr << "\n*** SKIPPED: " << what << " needs ../shared/data (not found at "
+              << G2L_SHARED_DATA_DIR << "; set G2L_SHARED_DATA to point at it) ***\n";
+    WARN("SKIPPED (no ../shared/data): " << what);
+}
+
+std::string temp_dir(const std::string& tag) {
+    std::random_device rd;
+    const fs::path p = fs::temp_directory_path() /
+                       ("g2l_test_" + tag + "_" + std::to_string(rd()) + std::to_string(rd()));
+    fs::create_directories(p);
+    return p.string();
+}
+
+}  // namespace g2l::testing

@@ -1,0 +1,23 @@
+// SPDX-License-Identifier: MIT
+// Helpers shared by the test executables.
+#pragma once
+
+#include <optional>
+#include <string>
+
+namespace g2l::testing {
+
+/// Directory of the small fixtures shipped in the repository (tests/data).
+std::string fixture_dir();
+
+/// ../shared/data if it exists (or $G2L_SHARED_DATA), else std::nullopt. When it is missing the
+/// caller's test must be skipped LOUDLY: call skip_without_shared_data(what) and return.
+std::optional<std::string> shared_data_dir();
+
+/// Prints a loud "SKIPPED" line on stderr and records a Catch2 WARN naming the test.
+void skip_without_shared_data(const std::string& what);
+
+/// A fresh empty temporary directory (removed at process exit is not guaranteed).
+std::string temp_dir(const std::string& tag);
+
+}  // namespace g2l::testing

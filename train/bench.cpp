@@ -1,0 +1,86 @@
+// SPDX-License-Identifier: MIT
+#include "train/bench.h"
+
+#include <algorithm>
+#include <chrono>
+
+#include "core/autograd.h"
+#include "core/rng.h"
+#include "kernels/gemm.h"
+#include "nn/ops/linear.h"
+
+namespace g2l::train {
+
+double median_seconds(const std::function<void()>& fn, int reps, int warmup) {
+    for (int i = 0; i < warmup; ++i) fn();
+    std::vector<double> t;
+    for (int i = 0; i < std::max(1, reps); ++i) {
+        const auto t0 = std::chrono::steady_clock::now();
+        fn();
+        t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    }
+    std::sort(t.begin(), t.end());
+    return t[t.size() / 2];
+}
+
+namespace {
+
+// One shared-MLP layer x [B, Cin, N] -> [B, Cout, N]: forward-only and forward+backward figures.
+void bench_shared_mlp(std::vector<BenchFigure>& out, const std::string& key, int64_t B,
+                      int64_t Cin, int64_t N, int64_t Cout, int reps) {
+    Rng rng(1);
+    Tensor x = Tensor::randn({B, Cin, N}, rng);
+    Tensor w = Tensor::randn({Cout, Cin}, rng);
+    Tensor b = Tensor::randn({Cout}, rng);
+    const double flops = 2.0 * double(B) * Cin * N * Cout;
+    const std::string shape = "[" + std::to_string(B) + ", " + std::to_string(Cin) + ", " +
+                              std::to_string(N) + "] -> " + std::to_string(Cout);
+    const double tf = median_seconds([&] {
+        autograd::NoGradGuard g;
+        nn::conv1x1(x, w, b);
+    }, reps);
+    x.set_requires_grad();
+    w.set_requires_grad();
+    b.set_requires_grad();
+    Tensor dy = Tensor::randn({B, Cout, N}, rng);
+    const double tfb = median_seconds([&] {
+        x.zero_grad();
+        w.zero_grad();
+        b.zero_grad();
+        nn::conv1x1(x, w, b).backward(dy);
+    }, reps);
+    out.push_back({key + "_fwd_gflops", flops / tf / 1e9, "GFLOP/s", "conv1x1 forward " + shape});
+    out.push_back({key + "_fwdbwd_gflops", 3 * flops / tfb / 1e9, "GFLOP/s",
+                   "conv1x1 forward + backward (dx, dw, db) " + shape});
+    out.push_back({key + "_fwdbwd_ms", tfb * 1e3, "ms", "conv1x1 forward + backward " + shape});
+}
+
+}  // namespace
+
+std::vector<BenchFigure> bench_engine(int reps, bool quick) {
+    std::vector<BenchFigure> out;
+    // The headline figure: G2L-Net block B's first layer on one sample (spec §4.5).
+    bench_shared_mlp(out, "shared_mlp", 1, 2280, 1000, 1024, reps);
+    {
+        const int64_t S = quick ? 1024 : 2048;
+        Rng rng(2);
+        Tensor a = Tensor::randn({S, S}, rng), b = Tensor::randn({S, S}, rng);
+        Tensor c = Tensor::empty({S, S});
+        const double t = median_seconds([&] {
+            kernels::gemm_cpu<float>(false, false, S, S, S, 1.f, a.data<float>(), S,
+                                     b.data<float>(), S, 0.f, c.data<float>(), S);
+        }, reps);
+        out.push_back({"gemm_peak_gflops", 2.0 * S * S * S / t / 1e9, "GFLOP/s",
+                       "square SGEMM " + std::to_string(S) + "^3 (gemm_cpu)"});
+    }
+    if (!quick) {
+        // The other large layers of one training batch (B = 8; 1500 points in the seg net,
+        // 1000 after segmentation), spec §4.2-§4.6.
+        bench_shared_mlp(out, "seg_head1_b8", 8, 2256, 1500, 512, std::max(1, reps / 2));
+        bench_shared_mlp(out, "backbone_conv5_b8", 8, 128, 1500, 1024, std::max(1, reps / 2));
+        bench_shared_mlp(out, "rre_conv1_b8", 8, 2256, 1000, 256, std::max(1, reps / 2));
+    }
+    return out;
+}
+
+}  // namespace g2l::train

@@ -1,0 +1,26 @@
+// SPDX-License-Identifier: MIT
+// g2l_bench's measurements: the engine on G2L-Net's layer shapes (spec §4). Each figure is the
+// median of several timed repetitions after a warm-up.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace g2l::train {
+
+struct BenchFigure {
+    std::string name;    ///< JSON key, e.g. "shared_mlp_fwd_gflops"
+    double value = 0;    ///< in `unit`
+    std::string unit;    ///< "GFLOP/s", "ms", "samples/s"
+    std::string detail;  ///< shape / what was timed
+};
+
+/// Median wall time in seconds of `reps` calls of fn after `warmup` calls.
+double median_seconds(const std::function<void()>& fn, int reps, int warmup = 1);
+
+/// Engine figures: shared_mlp_fwd_gflops, shared_mlp_fwdbwd_gflops ([1, 2280, 1000] -> 1024),
+/// gemm_peak_gflops (2048^3), plus per-layer timings of G2L-Net's largest shared MLPs.
+std::vector<BenchFigure> bench_engine(int reps, bool quick);
+
+}  // namespace g2l::train

@@ -1,0 +1,43 @@
+// SPDX-License-Identifier: MIT
+// g2l_bench: prints the engine's speed on G2L-Net's shapes; --json prints one JSON object.
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "core/error.h"
+#include "core/threads.h"
+#include "train/bench.h"
+
+int main(int argc, char** argv) {
+    CLI::App app{"g2l_bench: times the g2l engine on G2L-Net layer shapes (medians of repeated "
+                 "runs). Figures are machine-dependent; see docs/results.md for recorded ones."};
+    bool json = false, quick = false;
+    int reps = 7, threads = 0;
+    app.add_flag("--json", json, "print one JSON object instead of a table");
+    app.add_flag("--quick", quick, "fewer and smaller measurements (for smoke tests)");
+    app.add_option("--reps", reps, "timed repetitions per figure (median reported)")
+        ->check(CLI::Range(1, 1000));
+    app.add_option("--threads", threads, "OpenMP threads (0 = OMP_NUM_THREADS / all cores)")
+        ->check(CLI::Range(0, 1024));
+    CLI11_PARSE(app, argc, argv);
+    try {
+        if (threads > 0) g2l::set_num_threads(threads);
+        const auto figs = g2l::train::bench_engine(reps, quick);
+        if (json) {
+            nlohmann::json j;
+            j["threads"] = g2l::num_threads();
+            for (const auto& f : figs) j[f.name] = f.value;
+            std::cout << j.dump(2) << "\n";
+        } else {
+            std::printf("g2l_bench (%d threads, median of %d)\n", g2l::num_threads(), reps);
+            for (const auto& f : figs)
+                std::printf("  %-28s %10.2f %-9s  %s\n", f.name.c_str(), f.value, f.unit.c_str(),
+                            f.detail.c_str());
+        }
+        return 0;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "g2l_bench: error: %s\n", e.what());
+        return 1;
+    }
+}

@@ -1,0 +1,31 @@
+// SPDX-License-Identifier: MIT
+#include <cstring>
+
+#include "nn/modules/layers.h"
+#include "nn/ops/dropout.h"
+
+namespace g2l::nn {
+
+Dropout::Dropout(double p_, uint64_t seed) : p(p_) {
+    G2L_CHECK(p >= 0 && p < 1, "Dropout: p must be in [0, 1), got ", p);
+    Rng rng(seed);
+    const auto s = rng.state();
+    rng_state = Tensor::empty({8}, DType::I32);
+    std::memcpy(rng_state.data(), s.data(), sizeof(s));
+    register_buffer("rng_state", rng_state);
+}
+
+Tensor Dropout::forward(const Tensor& x) {
+    if (!is_training() || p == 0) return x;
+    std::array<uint64_t, 4> s;
+    std::memcpy(s.data(), rng_state.data(), sizeof(s));
+    Rng rng;
+    rng.set_state(s);
+    Tensor y = dropout(x, p, true, rng);
+    const auto ns = rng.state();
+    std::memcpy(rng_state.data(), ns.data(), sizeof(ns));
+    rng_state.impl()->storage->bump_version();
+    return y;
+}
+
+}  // namespace g2l::nn

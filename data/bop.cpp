@@ -316,7 +316,19 @@ bool all_digits(const std::string& s) {
            std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
 }
 
+std::string dataset_name_of(const fs::path& root, const BopOptions& opt) {
+    if (!opt.dataset_name.empty()) return opt.dataset_name;
+    return (root.has_filename() ? root : root.parent_path()).filename().string();
+}
+
 }  // namespace
+
+Dataset open_bop_models(const std::string& root_str, const BopOptions& opt) {
+    const fs::path root = fs::path(root_str).lexically_normal();
+    G2L_CHECK(fs::is_directory(root), "BOP dataset root not found: '", root_str, "'");
+    const std::string name = dataset_name_of(root, opt);
+    return Dataset(name, root.string(), {}, read_models(root, name, opt));
+}
 
 BopDataset open_bop(const std::string& root_str, const std::string& split, const BopOptions& opt) {
     const fs::path root = fs::path(root_str).lexically_normal();
@@ -324,10 +336,7 @@ BopDataset open_bop(const std::string& root_str, const std::string& split, const
     const fs::path split_dir = root / split;
     G2L_CHECK(!split.empty() && fs::is_directory(split_dir), "BOP split '", split,
               "' not found: no folder '", split_dir.string(), "'");
-    std::string name = opt.dataset_name;
-    if (name.empty()) {
-        name = (root.has_filename() ? root : root.parent_path()).filename().string();
-    }
+    const std::string name = dataset_name_of(root, opt);
 
     const std::map<int, ObjectModel> models = read_models(root, name, opt);
 

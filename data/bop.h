@@ -59,4 +59,9 @@ private:
 BopDataset open_bop(const std::string& root, const std::string& split,
                     const BopOptions& options = {});
 
+/// Only the object models of a BOP root (<root>/models or models_eval + models_info.json,
+/// obj_names.json): a Dataset without frames, for training from renders of the meshes. Same
+/// option semantics and model errors as open_bop (scenes are ignored).
+Dataset open_bop_models(const std::string& root, const BopOptions& options = {});
+
 }  // namespace g2l::data

@@ -1,0 +1,170 @@
+// SPDX-License-Identifier: MIT
+#include "data/bop_writer.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/error.h"
+#include "geometry/mesh_io.h"
+#include "geometry/model_info.h"
+
+namespace g2l::data {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+std::string im_name(int image_id) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%06d.png", image_id);
+    return buf;
+}
+
+std::string mask_name(int image_id, int k) {
+    char buf[48];
+    std::snprintf(buf, sizeof buf, "%06d_%06d.png", image_id, k);
+    return buf;
+}
+
+void write_png(const std::string& path, const cv::Mat& img) {
+    std::vector<uint8_t> buf;
+    G2L_CHECK(cv::imencode(".png", img, buf), "BopSceneWriter: PNG encoding failed for '", path,
+              "'");
+    write_file_atomic(path, std::string(buf.begin(), buf.end()));
+}
+
+json box_json(const geom::Box2i& b) {
+    return b.empty() ? json::array({-1, -1, -1, -1}) : json::array({b.x, b.y, b.w, b.h});
+}
+
+// One JSON document {"<id>": value, ...} from already serialised values, in image-id order.
+std::string assemble(const std::map<int, std::string>& entries) {
+    std::string s = "{\n";
+    size_t i = 0;
+    for (const auto& [id, val] : entries) {
+        s += "  \"" + std::to_string(id) + "\": " + val + (++i < entries.size() ? ",\n" : "\n");
+    }
+    return s + "}\n";
+}
+
+}  // namespace
+
+void write_file_atomic(const std::string& path, const std::string& bytes) {
+    const std::string tmp = path + ".tmp";
+    {
+        std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+        G2L_CHECK(f.good(), "cannot open '", tmp, "' for writing");
+        f.write(bytes.data(), std::streamsize(bytes.size()));
+        f.flush();
+        G2L_CHECK(f.good(), "write failed for '", tmp, "' (", bytes.size(), " bytes)");
+    }
+    std::error_code ec;
+    fs::rename(tmp, path, ec);
+    G2L_CHECK(!ec, "cannot rename '", tmp, "' to '", path, "': ", ec.message());
+}
+
+BopSceneWriter::BopSceneWriter(std::string scene_dir) : dir_(std::move(scene_dir)) {
+    for (const char* sub : {"rgb", "depth", "mask", "mask_visib"}) {
+        std::error_code ec;
+        fs::create_directories(fs::path(dir_) / sub, ec);
+        G2L_CHECK(!ec, "BopSceneWriter: cannot create '", (fs::path(dir_) / sub).string(),
+                  "': ", ec.message());
+    }
+}
+
+void BopSceneWriter::write(int image_id, const RenderedFrame& f) {
+    G2L_CHECK(image_id >= 0, "BopSceneWriter: image id must be >= 0, got ", image_id);
+    G2L_CHECK(gt_.count(image_id) == 0, "BopSceneWriter: image id ", image_id,
+              " written twice to '", dir_, "'");
+    const int W = f.K.width, H = f.K.height;
+    const size_t n = size_t(W) * size_t(H);
+    G2L_CHECK(W > 0 && H > 0 && f.depth.size() == n && f.rgb.size() == 3 * n &&
+                  f.mask.size() == n && f.full_masks.size() == f.instances.size(),
+              "BopSceneWriter: frame buffers do not match the ", W, " x ", H, " camera (depth ",
+              f.depth.size(), ", rgb ", f.rgb.size(), ", mask ", f.mask.size(), ")");
+    G2L_CHECK(f.depth_scale > 0, "BopSceneWriter: depth_scale must be > 0, got ", f.depth_scale);
+    const fs::path dir(dir_);
+
+    cv::Mat rgb(H, W, CV_8UC3);
+    for (size_t i = 0; i < n; ++i) {  // OpenCV wants BGR
+        uint8_t* p = rgb.data + 3 * i;
+        p[0] = f.rgb[3 * i + 2];
+        p[1] = f.rgb[3 * i + 1];
+        p[2] = f.rgb[3 * i];
+    }
+    write_png((dir / "rgb" / im_name(image_id)).string(), rgb);
+
+    cv::Mat depth(H, W, CV_16UC1);
+    uint16_t* d = depth.ptr<uint16_t>();
+    for (size_t i = 0; i < n; ++i) {
+        const double q = std::round(double(f.depth[i]) / f.depth_scale);
+        d[i] = (q > 0 && q <= 65535.0) ? uint16_t(q) : uint16_t(0);
+    }
+    write_png((dir / "depth" / im_name(image_id)).string(), depth);
+
+    json gt = json::array(), info = json::array();
+    cv::Mat m(H, W, CV_8UC1);
+    for (size_t k = 0; k < f.instances.size(); ++k) {
+        const RenderedInstance& in = f.instances[k];
+        G2L_CHECK(f.full_masks[k].size() == n, "BopSceneWriter: full mask ", k, " has ",
+                  f.full_masks[k].size(), " pixels, expected ", n);
+        std::copy(f.full_masks[k].begin(), f.full_masks[k].end(), m.data);
+        write_png((dir / "mask" / mask_name(image_id, int(k))).string(), m);
+        for (size_t i = 0; i < n; ++i) m.data[i] = f.mask[i] == k + 1 ? 255 : 0;
+        write_png((dir / "mask_visib" / mask_name(image_id, int(k))).string(), m);
+
+        json R = json::array(), t = json::array();
+        for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 3; ++c) R.push_back(in.pose.R(r, c));
+            t.push_back(in.pose.t[r]);
+        }
+        gt.push_back({{"cam_R_m2c", R}, {"cam_t_m2c", t}, {"obj_id", in.obj_id}});
+        info.push_back({{"bbox_obj", box_json(in.bbox_obj)},
+                        {"bbox_visib", box_json(in.bbox_visib)},
+                        {"px_count_all", in.px_count_all},
+                        {"px_count_valid", in.px_count_valid},
+                        {"px_count_visib", in.px_count_visib},
+                        {"visib_fract", in.visib_fract}});
+    }
+    const json cam = {{"cam_K", {f.K.fx, 0.0, f.K.cx, 0.0, f.K.fy, f.K.cy, 0.0, 0.0, 1.0}},
+                      {"depth_scale", f.depth_scale}};
+    gt_[image_id] = gt.dump();
+    info_[image_id] = info.dump();
+    camera_[image_id] = cam.dump();
+}
+
+void BopSceneWriter::flush() const {
+    const fs::path dir(dir_);
+    write_file_atomic((dir / "scene_gt.json").string(), assemble(gt_));
+    write_file_atomic((dir / "scene_camera.json").string(), assemble(camera_));
+    write_file_atomic((dir / "scene_gt_info.json").string(), assemble(info_));
+}
+
+void write_bop_models(const std::string& models_dir, const std::vector<SceneModel>& models) {
+    std::error_code ec;
+    fs::create_directories(models_dir, ec);
+    G2L_CHECK(!ec, "write_bop_models: cannot create '", models_dir, "': ", ec.message());
+    std::map<int, std::string> info;
+    for (const SceneModel& m : models) {
+        G2L_CHECK(m.mesh != nullptr, "write_bop_models: obj_id ", m.obj_id, " has a null mesh");
+        char name[32];
+        std::snprintf(name, sizeof name, "obj_%06d.ply", m.obj_id);
+        const std::string path = (fs::path(models_dir) / name).string();
+        const std::string tmp = path + ".tmp.ply";
+        geom::save_ply(tmp, *m.mesh);
+        fs::rename(tmp, path, ec);
+        G2L_CHECK(!ec, "write_bop_models: cannot rename '", tmp, "': ", ec.message());
+        const geom::ModelInfo mi = geom::compute_model_info(m.mesh->vertices);
+        const json j = {{"diameter", mi.diameter}, {"min_x", mi.min.x()}, {"min_y", mi.min.y()},
+                        {"min_z", mi.min.z()},     {"size_x", mi.size.x()}, {"size_y", mi.size.y()},
+                        {"size_z", mi.size.z()}};
+        info[m.obj_id] = j.dump();
+    }
+    write_file_atomic((fs::path(models_dir) / "models_info.json").string(), assemble(info));
+}
+
+}  // namespace g2l::data

@@ -1,0 +1,54 @@
+// SPDX-License-Identifier: MIT
+// Writes rendered frames as a BOP scene folder (https://bop.felk.cvut.cz format):
+//   <scene_dir>/rgb/%06d.png, depth/%06d.png (uint16 = round(z / depth_scale)),
+//   mask/%06d_%06d.png (full silhouettes), mask_visib/%06d_%06d.png (visible parts),
+//   scene_gt.json, scene_camera.json, scene_gt_info.json
+// and model folders (models/obj_%06d.ply + models_info.json). Every file is written to a
+// temporary name and renamed into place, so a crash never leaves a truncated file.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "data/scene.h"
+#include "geometry/types.h"
+
+namespace g2l::data {
+
+/// Accumulates the JSON records of one BOP scene while its images are written.
+class BopSceneWriter {
+public:
+    /// Creates scene_dir and its rgb/, depth/, mask/, mask_visib/ sub-folders. Throws
+    /// g2l::Error naming the folder when it cannot be created.
+    explicit BopSceneWriter(std::string scene_dir);
+
+    /// Writes the images of `frame` under image id `image_id` (>= 0) and records its
+    /// scene_gt / scene_camera / scene_gt_info entries. Depth values beyond the uint16 range
+    /// (z / depth_scale > 65535) are written as 0 (no measurement). Throws g2l::Error for a
+    /// negative or repeated image id, buffers whose size differs from frame.K, or a write error.
+    void write(int image_id, const RenderedFrame& frame);
+
+    /// Writes scene_gt.json, scene_camera.json and scene_gt_info.json for every frame written so
+    /// far (may be called repeatedly; each call rewrites them). Throws g2l::Error on write errors.
+    void flush() const;
+
+    const std::string& dir() const { return dir_; }
+
+private:
+    std::string dir_;
+    std::map<int, std::string> gt_, camera_, info_;  ///< image id -> serialised JSON value
+};
+
+/// Writes each mesh as <models_dir>/obj_%06d.ply (geometry/mesh_io.h save_ply) and
+/// models_info.json (diameter, min_*, size_* from compute_model_info; "symmetries_discrete": []
+/// is not written, BOP readers treat absent symmetries as none). Throws g2l::Error for a null
+/// mesh or a write error.
+void write_bop_models(const std::string& models_dir, const std::vector<SceneModel>& models);
+
+/// Writes `bytes` to `path` atomically (temporary file + rename). Throws g2l::Error naming the
+/// path on failure.
+void write_file_atomic(const std::string& path, const std::string& bytes);
+
+}  // namespace g2l::data

@@ -1,0 +1,313 @@
+// SPDX-License-Identifier: MIT
+#include "data/scene.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/rng.h"
+#include "data/render_primitives.h"
+
+namespace g2l::data {
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+uint64_t mix64(uint64_t z) {
+    z += 0x9E3779B97F4A7C15ull;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+std::string join_ids(const std::vector<int>& ids) {
+    std::ostringstream s;
+    for (size_t i = 0; i < ids.size(); ++i) s << (i ? ", " : "") << ids[i];
+    return s.str();
+}
+
+// Uniformly distributed rotation (normalised 4D Gaussian = uniform unit quaternion).
+Eigen::Matrix3d random_rotation(Rng& rng) {
+    Eigen::Quaterniond q(rng.normal(), rng.normal(), rng.normal(), rng.normal());
+    q.normalize();
+    return q.toRotationMatrix();
+}
+
+Eigen::Matrix3d euler_rotation(const std::array<double, 3>& lo, const std::array<double, 3>& hi,
+                               Rng& rng) {
+    const double a = rng.uniform(lo[0], hi[0]) * kDeg, b = rng.uniform(lo[1], hi[1]) * kDeg;
+    const double c = rng.uniform(lo[2], hi[2]) * kDeg;
+    return (Eigen::AngleAxisd(c, Eigen::Vector3d::UnitZ()) *
+            Eigen::AngleAxisd(b, Eigen::Vector3d::UnitY()) *
+            Eigen::AngleAxisd(a, Eigen::Vector3d::UnitX()))
+        .toRotationMatrix();
+}
+
+// Box of the non-zero pixels of a predicate over the image, and their count.
+template <class Pred>
+int64_t count_and_box(int W, int H, Pred pred, geom::Box2i& box) {
+    int u0 = W, v0 = H, u1 = -1, v1 = -1;
+    int64_t n = 0;
+    for (int v = 0; v < H; ++v) {
+        for (int u = 0; u < W; ++u) {
+            if (!pred(size_t(v) * W + u)) continue;
+            ++n;
+            u0 = std::min(u0, u);
+            u1 = std::max(u1, u);
+            v0 = std::min(v0, v);
+            v1 = std::max(v1, v);
+        }
+    }
+    box = n > 0 ? geom::Box2i{u0, v0, u1 - u0 + 1, v1 - v0 + 1} : geom::Box2i{};
+    return n;
+}
+
+}  // namespace
+
+void validate(const SceneConfig& c, const std::string& where) {
+    const geom::Intrinsics& K = c.camera;
+    G2L_CHECK(K.width > 0 && K.height > 0 && K.fx > 0 && K.fy > 0, where,
+              ": camera needs width, height, fx, fy > 0, got ", K.width, " x ", K.height,
+              " fx=", K.fx, " fy=", K.fy);
+    G2L_CHECK(c.depth_scale > 0, where, ": depth_scale must be > 0, got ", c.depth_scale);
+    G2L_CHECK(c.z_min > 0, where, ": z_min must be > 0 mm, got ", c.z_min);
+    G2L_CHECK(c.z_min <= c.z_max, where, ": z range inverted: z_min ", c.z_min, " > z_max ",
+              c.z_max);
+    G2L_CHECK(c.targets_min >= 0 && c.targets_min <= c.targets_max && c.targets_max >= 1, where,
+              ": need 0 <= targets_min <= targets_max and targets_max >= 1, got ", c.targets_min,
+              " and ", c.targets_max);
+    G2L_CHECK(c.distractors_min >= 0 && c.distractors_min <= c.distractors_max, where,
+              ": need 0 <= distractors_min <= distractors_max, got ", c.distractors_min, " and ",
+              c.distractors_max);
+    G2L_CHECK(c.xy_frac > 0 && c.xy_frac <= 1, where, ": xy_frac must be in (0, 1], got ",
+              c.xy_frac);
+    for (int k = 0; k < 3; ++k) {
+        G2L_CHECK(c.euler_min[k] <= c.euler_max[k], where, ": euler_min[", k, "] ",
+                  c.euler_min[k], " > euler_max[", k, "] ", c.euler_max[k]);
+    }
+    G2L_CHECK(c.separation >= 0 && c.separation <= 1, where,
+              ": separation must be in [0, 1], got ", c.separation);
+    G2L_CHECK(c.support_plane_prob >= 0 && c.support_plane_prob <= 1, where,
+              ": support_plane_prob must be in [0, 1], got ", c.support_plane_prob);
+    G2L_CHECK(c.plane_tilt_max >= 0 && c.plane_tilt_max < 90, where,
+              ": plane_tilt_max must be in [0, 90) degrees, got ", c.plane_tilt_max);
+    validate(c.noise, where + ": noise");
+}
+
+SceneGenerator::SceneGenerator(const SceneConfig& cfg, std::vector<SceneModel> models)
+    : cfg_(cfg), renderer_((validate(cfg), cfg.camera)) {
+    G2L_CHECK(!models.empty(), "SceneGenerator: empty model list (need at least one mesh)");
+    std::vector<int> ids;
+    for (const SceneModel& m : models) {
+        G2L_CHECK(m.mesh != nullptr, "SceneGenerator: obj_id ", m.obj_id, " has a null mesh");
+        G2L_CHECK(m.mesh->faces.rows() > 0 && m.mesh->vertices.rows() > 0,
+                  "SceneGenerator: obj_id ", m.obj_id, " mesh '", m.mesh->path,
+                  "' has no faces or vertices");
+        G2L_CHECK(std::find(ids.begin(), ids.end(), m.obj_id) == ids.end(),
+                  "SceneGenerator: duplicated obj_id ", m.obj_id);
+        ids.push_back(m.obj_id);
+        const Eigen::Vector3f lo = m.mesh->vertices.colwise().minCoeff();
+        const Eigen::Vector3f hi = m.mesh->vertices.colwise().maxCoeff();
+        const Eigen::Vector3d c = (0.5f * (lo + hi)).cast<double>();
+        const double r =
+            std::sqrt(double((m.mesh->vertices.rowwise() - c.cast<float>().transpose())
+                                 .rowwise()
+                                 .squaredNorm()
+                                 .maxCoeff()));
+        models_.push_back({m.obj_id, m.mesh, c, std::max(r, 1e-3)});
+    }
+    targets_ = cfg_.target_obj_ids.empty() ? ids : cfg_.target_obj_ids;
+    for (const int id : targets_) {
+        G2L_CHECK(std::find(ids.begin(), ids.end(), id) != ids.end(), "SceneGenerator: target ",
+                  "obj_id ", id, " is not among the models (", join_ids(ids), ")");
+    }
+    if (cfg_.distractor_obj_ids.empty()) {
+        for (const int id : ids) {
+            if (std::find(targets_.begin(), targets_.end(), id) == targets_.end()) {
+                distractors_.push_back(id);
+            }
+        }
+    } else {
+        distractors_ = cfg_.distractor_obj_ids;
+        for (const int id : distractors_) {
+            G2L_CHECK(std::find(ids.begin(), ids.end(), id) != ids.end(),
+                      "SceneGenerator: distractor obj_id ", id, " is not among the models (",
+                      join_ids(ids), ")");
+        }
+    }
+    plane_ = make_quad(1.0, 8);
+    plane_unit_ = plane_.vertices;
+    plane_.path = "<support plane>";
+}
+
+const SceneGenerator::ModelGeom& SceneGenerator::model(int obj_id) const {
+    for (const ModelGeom& m : models_) {
+        if (m.obj_id == obj_id) return m;
+    }
+    G2L_CHECK(false, "SceneGenerator: unknown obj_id ", obj_id);
+    return models_.front();
+}
+
+void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads) {
+    G2L_CHECK(index >= 0, "SceneGenerator::render_frame: frame index must be >= 0, got ", index);
+    Rng rng(mix64(cfg_.seed ^ mix64(uint64_t(index) + 0x51ED270B7A3Cull)));
+    const geom::Intrinsics& K = cfg_.camera;
+    const int W = K.width, H = K.height;
+
+    // Which objects: targets (annotated, instance ids 1..n) then distractors (id 0).
+    std::vector<int> pool = targets_;
+    int n_targets = int(rng.randint(cfg_.targets_min, cfg_.targets_max + 1));
+    if (cfg_.unique_targets) n_targets = std::min<int>(n_targets, int(pool.size()));
+    std::vector<int> chosen;
+    for (int k = 0; k < n_targets; ++k) {
+        if (cfg_.unique_targets) {  // partial Fisher-Yates: draw without replacement
+            const int j = k + int(rng.below(uint64_t(pool.size()) - uint64_t(k)));
+            std::swap(pool[size_t(k)], pool[size_t(j)]);
+            chosen.push_back(pool[size_t(k)]);
+        } else {
+            chosen.push_back(pool[size_t(rng.below(pool.size()))]);
+        }
+    }
+    int n_distract = int(rng.randint(cfg_.distractors_min, cfg_.distractors_max + 1));
+    if (distractors_.empty()) n_distract = 0;
+    for (int k = 0; k < n_distract; ++k) {
+        chosen.push_back(distractors_[size_t(rng.below(distractors_.size()))]);
+    }
+
+    // Poses: centre projects into the central xy_frac of the image at a random depth, and
+    // bounding spheres keep apart by `separation`.
+    objects_.clear();
+    std::vector<std::pair<Eigen::Vector3d, double>> placed;
+    for (size_t k = 0; k < chosen.size(); ++k) {
+        const ModelGeom& m = model(chosen[k]);
+        Eigen::Vector3d p;
+        for (int attempt = 0; attempt < 100; ++attempt) {
+            const double z = rng.uniform(cfg_.z_min, cfg_.z_max);
+            const double u = W * (0.5 + cfg_.xy_frac * (rng.uniform() - 0.5));
+            const double v = H * (0.5 + cfg_.xy_frac * (rng.uniform() - 0.5));
+            p = Eigen::Vector3d((u - K.cx) * z / K.fx, (v - K.cy) * z / K.fy, z);
+            bool ok = true;
+            for (const auto& [q, r] : placed) {
+                ok = ok && (p - q).norm() >= cfg_.separation * (r + m.radius);
+            }
+            if (ok) break;
+        }
+        placed.emplace_back(p, m.radius);
+        RenderObject obj;
+        obj.mesh = m.mesh;
+        obj.pose.R = cfg_.full_rotation ? random_rotation(rng)
+                                        : euler_rotation(cfg_.euler_min, cfg_.euler_max, rng);
+        obj.pose.t = p - obj.pose.R * m.center;
+        obj.instance_id = k < size_t(n_targets) ? int32_t(k + 1) : 0;
+        obj.default_color = cfg_.object_color;
+        objects_.push_back(obj);
+    }
+
+    // Support plane: normal tilted from -z, placed behind every bounding sphere.
+    const bool plane = rng.uniform() < cfg_.support_plane_prob && !placed.empty();
+    if (plane) {
+        const double tilt = rng.uniform(0, cfg_.plane_tilt_max) * kDeg;
+        const double az = rng.uniform(0, 360) * kDeg;
+        const Eigen::Vector3d n(std::sin(tilt) * std::cos(az), std::sin(tilt) * std::sin(az),
+                                -std::cos(tilt));  // points towards the camera
+        double d = -1e30;  // plane n.x + d = 0 with n.p + d >= r for all spheres
+        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        for (const auto& [q, r] : placed) {
+            d = std::max(d, r - n.dot(q));
+            mean += q;
+        }
+        d += rng.uniform(0, 100);
+        mean /= double(placed.size());
+        RenderObject obj;
+        obj.pose.R = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), n)
+                         .toRotationMatrix();
+        obj.pose.t = mean - (n.dot(mean) + d) * n;
+        const double size = 4.0 * (obj.pose.t.norm() + 500.0) * std::max(W / K.fx, H / K.fy);
+        plane_.vertices = plane_unit_ * float(size);
+        obj.mesh = &plane_;
+        for (int c = 0; c < 3; ++c) {
+            obj.default_color[size_t(c)] =
+                cfg_.random_background ? uint8_t(rng.randint(40, 230)) : uint8_t(128);
+        }
+        objects_.push_back(obj);
+    }
+
+    RenderOptions opt;
+    opt.threads = threads;
+    if (cfg_.random_light) {
+        const double el = rng.uniform(0, 60) * kDeg, az = rng.uniform(0, 360) * kDeg;
+        opt.light.direction = Eigen::Vector3f(float(std::sin(el) * std::cos(az)),
+                                              float(std::sin(el) * std::sin(az)),
+                                              float(-std::cos(el)));
+        opt.light.ambient = float(rng.uniform(0.15, 0.5));
+        opt.light.diffuse = float(rng.uniform(0.4, 0.9));
+    }
+    renderer_.render(objects_, opt, full_);
+
+    // Background: a linear gradient between two random colours plus per-pixel noise.
+    out.K = K;
+    out.depth_scale = cfg_.depth_scale;
+    out.rgb = full_.rgb;
+    if (cfg_.random_background) {
+        float c0[3], c1[3];
+        for (int c = 0; c < 3; ++c) {
+            c0[c] = float(rng.uniform(0, 255));
+            c1[c] = float(rng.uniform(0, 255));
+        }
+        const double ang = rng.uniform(0, 360) * kDeg;
+        const float gx = float(std::cos(ang)), gy = float(std::sin(ang));
+        const float amp = float(rng.uniform(0, 40));
+        const float span = std::fabs(gx) * W + std::fabs(gy) * H;
+        const float off = std::min(0.0f, gx * W) + std::min(0.0f, gy * H);
+        for (int v = 0; v < H; ++v) {
+            for (int u = 0; u < W; ++u) {
+                const size_t i = size_t(v) * W + u;
+                if (full_.depth[i] > 0) continue;
+                const float s = (gx * u + gy * v - off) / span;
+                const float nz = amp * float(rng.uniform() - 0.5);
+                for (int c = 0; c < 3; ++c) {
+                    const float val = c0[c] + s * (c1[c] - c0[c]) + nz;
+                    out.rgb[3 * i + c] = uint8_t(std::clamp(val + 0.5f, 0.0f, 255.0f));
+                }
+            }
+        }
+    }
+
+    out.depth = full_.depth;
+    apply_sensor_noise(cfg_.noise, rng.next_u64(), W, H, full_.cos_view.data(), out.depth.data(),
+                       noise_scratch_, threads);
+    out.mask.resize(size_t(W) * H);
+    for (size_t i = 0; i < out.mask.size(); ++i) out.mask[i] = uint16_t(full_.instance[i]);
+
+    // Per-instance ground truth: full silhouette from a solo render, visible part from the
+    // scene's instance image (BOP scene_gt_info semantics).
+    out.instances.resize(size_t(n_targets));
+    out.full_masks.resize(size_t(n_targets));
+    std::vector<RenderObject> solo(1);
+    RenderOptions solo_opt = opt;
+    solo_opt.shade = false;  // only the silhouette is needed
+    for (int k = 0; k < n_targets; ++k) {
+        solo[0] = objects_[size_t(k)];
+        renderer_.render(solo, solo_opt, solo_);
+        RenderedInstance& gt = out.instances[size_t(k)];
+        gt.obj_id = chosen[size_t(k)];
+        gt.pose = objects_[size_t(k)].pose;
+        std::vector<uint8_t>& fm = out.full_masks[size_t(k)];
+        fm.resize(size_t(W) * H);
+        for (size_t i = 0; i < fm.size(); ++i) fm[i] = solo_.depth[i] > 0 ? 255 : 0;
+        gt.px_count_all = count_and_box(W, H, [&](size_t i) { return fm[i] != 0; }, gt.bbox_obj);
+        const uint16_t id = uint16_t(k + 1);
+        gt.px_count_visib =
+            count_and_box(W, H, [&](size_t i) { return out.mask[i] == id; }, gt.bbox_visib);
+        gt.px_count_valid = 0;
+        for (size_t i = 0; i < fm.size(); ++i) gt.px_count_valid += fm[i] != 0 && out.depth[i] > 0;
+        gt.visib_fract =
+            gt.px_count_all > 0 ? double(gt.px_count_visib) / double(gt.px_count_all) : 0.0;
+    }
+}
+
+}  // namespace g2l::data

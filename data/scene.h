@@ -1,0 +1,128 @@
+// SPDX-License-Identifier: MIT
+// Random synthetic scenes: target objects (and distractors) at random poses in front of an
+// optional tilted support plane, random light and background, rendered with data/render.h and
+// degraded with data/sensor_noise.h. A frame depends only on (config.seed, frame index), so
+// frames can be generated in any order or in parallel with identical results.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "data/render.h"
+#include "data/sensor_noise.h"
+#include "geometry/types.h"
+
+namespace g2l::data {
+
+/// Everything that defines a synthetic scene distribution. Lengths in mm, angles in degrees.
+/// JSON keys are the field names (noise.* for SensorNoiseConfig, camera.* for the intrinsics).
+struct SceneConfig {
+    /// Camera (default: YCB-Video Asus Xtion, 640 x 480).
+    geom::Intrinsics camera{1066.778, 1067.487, 312.9869, 241.3109, 640, 480};
+    double depth_scale = 0.1;              ///< mm per depth PNG unit
+    std::vector<int> target_obj_ids;       ///< annotated objects; empty = every model given
+    int targets_min = 1, targets_max = 3;  ///< annotated instances per frame
+    bool unique_targets = true;            ///< each target id at most once per frame
+    std::vector<int> distractor_obj_ids;   ///< empty = every given model that is not a target
+    int distractors_min = 0, distractors_max = 2;  ///< unannotated clutter objects per frame
+    double z_min = 500, z_max = 1500;      ///< object centre depth range (mm)
+    /// Object centres project uniformly into the central xy_frac part of the image (0..1].
+    double xy_frac = 0.8;
+    /// Full uniform random rotation; when false, R = Rz(c) Ry(b) Rx(a) with (a, b, c) uniform
+    /// in [euler_min, euler_max] (degrees).
+    bool full_rotation = true;
+    std::array<double, 3> euler_min{{-180, -180, -180}};
+    std::array<double, 3> euler_max{{180, 180, 180}};
+    /// Centres are re-drawn (up to 100 times) while two bounding spheres overlap by more than
+    /// (1 - separation) of the sum of their radii; 0 = allow any interpenetration.
+    double separation = 0.9;
+    double support_plane_prob = 0.8;      ///< probability of a plane behind/under the objects
+    double plane_tilt_max = 60;           ///< plane normal tilt from the optical axis (degrees)
+    bool random_background = true;        ///< random colour gradient + noise where no surface
+    bool random_light = true;             ///< random light direction / ambient / diffuse
+    std::array<uint8_t, 3> object_color{{170, 170, 170}};  ///< for meshes without colours
+    SensorNoiseConfig noise;
+    uint64_t seed = 0;
+};
+
+/// Throws g2l::Error naming the field and value for any invalid setting (`where` prefixes the
+/// message, e.g. the file name): inverted z range, z_min <= 0, targets_min > targets_max,
+/// negative counts, xy_frac outside (0, 1], a bad camera, a probability outside [0, 1], ...
+void validate(const SceneConfig& cfg, const std::string& where = "SceneConfig");
+
+/// Parses a JSON object into a SceneConfig (defaults for absent keys). Unknown keys and wrong
+/// types throw g2l::Error naming `source` and the key path; the result is validated.
+SceneConfig parse_scene_config(const std::string& json_text, const std::string& source);
+
+/// Reads and parses a JSON scene config file. Throws g2l::Error naming the file.
+SceneConfig load_scene_config(const std::string& path);
+
+/// The config as pretty-printed JSON (parse_scene_config(scene_config_to_json(c)) == c).
+std::string scene_config_to_json(const SceneConfig& cfg);
+
+/// A mesh the scene may place, borrowed (must outlive the generator).
+struct SceneModel {
+    int obj_id = 0;
+    const geom::Mesh* mesh = nullptr;
+};
+
+/// Ground truth of one annotated instance, with BOP scene_gt / scene_gt_info semantics.
+struct RenderedInstance {
+    int obj_id = 0;
+    geom::Pose pose;               ///< model -> camera (mm)
+    geom::Box2i bbox_obj;          ///< box of the full silhouette (object rendered alone)
+    geom::Box2i bbox_visib;        ///< box of the visible pixels; empty if none
+    int64_t px_count_all = 0;      ///< pixels of the full silhouette
+    int64_t px_count_valid = 0;    ///< silhouette pixels with depth > 0 in the final depth
+    int64_t px_count_visib = 0;    ///< visible pixels (instance image == k + 1)
+    double visib_fract = 0;        ///< px_count_visib / px_count_all (0 when all is 0)
+};
+
+/// One rendered frame; buffers are H x W row-major and reused across render_frame calls.
+struct RenderedFrame {
+    geom::Intrinsics K;
+    double depth_scale = 0.1;
+    std::vector<float> depth;       ///< mm, sensor noise applied (if enabled); 0 = no depth
+    std::vector<uint8_t> rgb;       ///< H x W x 3
+    std::vector<uint16_t> mask;     ///< k + 1 where instance k is visible, 0 elsewhere
+    std::vector<std::vector<uint8_t>> full_masks;  ///< per instance: 255 on the full silhouette
+    std::vector<RenderedInstance> instances;
+};
+
+/// Samples and renders scenes. Holds a Renderer and scratch buffers: one generator per thread.
+class SceneGenerator {
+public:
+    /// Throws g2l::Error for an invalid config, an empty model list, a null or faceless mesh
+    /// (naming obj_id), a duplicated obj_id, or a target/distractor id that is not among the
+    /// models (listing the known ids).
+    SceneGenerator(const SceneConfig& cfg, std::vector<SceneModel> models);
+
+    const SceneConfig& config() const { return cfg_; }
+
+    /// Renders frame `index` into `out`; the result depends only on (config().seed, index).
+    /// threads: OpenMP threads for the rasterizer (0 = default); never changes the result.
+    void render_frame(int64_t index, RenderedFrame& out, int threads = 0);
+
+private:
+    struct ModelGeom {
+        int obj_id;
+        const geom::Mesh* mesh;
+        Eigen::Vector3d center;  ///< bounding-box centre, model frame
+        double radius;           ///< max distance of a vertex from center
+    };
+    const ModelGeom& model(int obj_id) const;
+
+    SceneConfig cfg_;
+    std::vector<ModelGeom> models_;
+    std::vector<int> targets_, distractors_;
+    Renderer renderer_;
+    RenderOutput full_, solo_;
+    geom::Mesh plane_;
+    geom::Points plane_unit_;  ///< plane vertices for a unit-size quad
+    std::vector<RenderObject> objects_;
+    std::vector<float> noise_scratch_;
+};
+
+}  // namespace g2l::data

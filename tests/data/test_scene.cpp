@@ -1,0 +1,250 @@
+// SPDX-License-Identifier: MIT
+// Scene generator, scene config JSON and BOP writer tests (round trip through data/bop.h).
+#include <algorithm>
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "core/error.h"
+#include "data/bop.h"
+#include "data/bop_writer.h"
+#include "data/render_primitives.h"
+#include "data/scene.h"
+#include "testing.h"
+
+using namespace g2l;
+using namespace g2l::data;
+using Catch::Contains;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Models {
+    geom::Mesh a = make_box(80, 60, 40), b = make_icosphere(35, 2), c = make_box(30, 30, 90);
+    std::vector<SceneModel> list() const { return {{1, &a}, {2, &b}, {5, &c}}; }
+};
+
+SceneConfig small_config() {
+    SceneConfig cfg;
+    cfg.camera = {400, 400, 160.5, 120.5, 320, 240};
+    cfg.targets_min = 2;
+    cfg.targets_max = 3;
+    cfg.seed = 11;
+    return cfg;
+}
+
+std::string read_bytes(const fs::path& p) {
+    std::ifstream f(p, std::ios::binary);
+    std::ostringstream s;
+    s << f.rdbuf();
+    return s.str();
+}
+
+}  // namespace
+
+TEST_CASE("scene ground truth is consistent with the masks; occluded objects lose pixels",
+          "[data][scene]") {
+    Models m;
+    SceneConfig cfg = small_config();
+    cfg.xy_frac = 0.15;  // crowd the objects so they occlude each other
+    cfg.separation = 0.3;
+    cfg.z_min = 600;
+    cfg.z_max = 900;
+    cfg.noise.enabled = false;
+    SceneGenerator gen(cfg, m.list());
+    Renderer solo_renderer(cfg.camera);
+    RenderOutput solo;
+    RenderedFrame f;
+    int occluded = 0;
+    for (int64_t idx = 0; idx < 6; ++idx) {
+        gen.render_frame(idx, f);
+        REQUIRE(f.instances.size() >= 2);
+        REQUIRE(f.instances.size() <= 3);
+        std::vector<std::vector<float>> solo_depth;
+        for (size_t k = 0; k < f.instances.size(); ++k) {
+            const RenderedInstance& gt = f.instances[k];
+            const geom::Mesh* mesh = gt.obj_id == 1 ? &m.a : gt.obj_id == 2 ? &m.b : &m.c;
+            solo_renderer.render({RenderObject{mesh, gt.pose, 1, {}}}, RenderOptions{}, solo);
+            solo_depth.push_back(solo.depth);
+            int64_t all = 0, visib = 0;
+            for (size_t i = 0; i < solo.depth.size(); ++i) {
+                all += solo.depth[i] > 0;
+                visib += f.mask[i] == k + 1;
+                if (f.mask[i] == k + 1) REQUIRE(solo.depth[i] > 0);  // visible part of the full
+                if (f.mask[i] == k + 1) REQUIRE(f.depth[i] == solo.depth[i]);
+            }
+            CHECK(gt.px_count_all == all);
+            CHECK(gt.px_count_visib == visib);
+            CHECK(gt.px_count_valid <= gt.px_count_all);
+            CHECK(gt.visib_fract == Approx(double(visib) / double(all)));
+            CHECK(gt.bbox_visib.w <= gt.bbox_obj.w);
+            occluded += gt.visib_fract < 0.98;
+        }
+        // Where two silhouettes overlap, the instance with the smaller solo depth is the one
+        // marked visible (unless a distractor or the plane is in front of both).
+        for (size_t i = 0; i < f.mask.size(); ++i) {
+            size_t best = 0;
+            float zbest = 1e30f;
+            int covering = 0;
+            for (size_t k = 0; k < solo_depth.size(); ++k) {
+                if (solo_depth[k][i] > 0 && solo_depth[k][i] < zbest) zbest = solo_depth[k][i], best = k;
+                covering += solo_depth[k][i] > 0;
+            }
+            if (covering >= 2 && f.mask[i] != 0) REQUIRE(f.mask[i] == best + 1);
+        }
+    }
+    CHECK(occluded >= 2);
+}
+
+TEST_CASE("scene frames depend only on seed and index, not on threads or order",
+          "[data][scene]") {
+    Models m;
+    SceneConfig cfg = small_config();
+    cfg.distractors_max = 1;
+    SceneGenerator g1(cfg, m.list()), g2(cfg, m.list());
+    RenderedFrame a, b;
+    g1.render_frame(3, a, 1);
+    g2.render_frame(0, b, 2);  // a different frame first
+    g2.render_frame(3, b, 2);
+    CHECK(a.depth == b.depth);
+    CHECK(a.rgb == b.rgb);
+    CHECK(a.mask == b.mask);
+    REQUIRE(a.instances.size() == b.instances.size());
+    for (size_t k = 0; k < a.instances.size(); ++k) {
+        CHECK(a.instances[k].pose.R == b.instances[k].pose.R);
+        CHECK(a.instances[k].pose.t == b.instances[k].pose.t);
+    }
+    g1.render_frame(4, b, 1);
+    CHECK(a.depth != b.depth);
+    // Objects sit in the configured depth range (pose t is the bounding-box centre here).
+    for (const RenderedInstance& in : a.instances) {
+        CHECK(in.pose.t.z() >= cfg.z_min);
+        CHECK(in.pose.t.z() <= cfg.z_max);
+    }
+}
+
+TEST_CASE("BOP writer output reads back with the BOP reader", "[data][scene][bop]") {
+    Models m;
+    SceneConfig cfg = small_config();
+    cfg.target_obj_ids = {1, 5};
+    SceneGenerator gen(cfg, m.list());
+    const fs::path root = testing::temp_dir("render_bop");
+    write_bop_models((root / "models").string(), m.list());
+    std::vector<RenderedFrame> frames(2);
+    {
+        BopSceneWriter w((root / "train_synt" / "000000").string());
+        for (int i = 0; i < 2; ++i) {
+            gen.render_frame(i, frames[size_t(i)]);
+            w.write(i, frames[size_t(i)]);
+        }
+        w.flush();
+        REQUIRE_THROWS_WITH(w.write(1, frames[1]), Contains("image id 1 written twice"));
+    }
+    const BopDataset ds = open_bop(root.string(), "train_synt");
+    REQUIRE(ds.frames().size() == 2);
+    CHECK(ds.models().size() == 3);
+    CHECK(ds.model(2).info.diameter == Approx(70).epsilon(1e-4));
+    for (int i = 0; i < 2; ++i) {
+        const Frame& fr = ds.frames()[size_t(i)];
+        const RenderedFrame& src = frames[size_t(i)];
+        CHECK(fr.image_id == i);
+        CHECK(fr.K.fx == 400);
+        CHECK(fr.K.cx == 160.5);
+        CHECK(fr.depth_scale == 0.1);
+        REQUIRE(fr.instances.size() == src.instances.size());
+        int w = 0, h = 0;
+        const std::vector<uint16_t> depth = ds.load_depth(fr, &w, &h);
+        REQUIRE(w == 320);
+        REQUIRE(h == 240);
+        for (size_t p = 0; p < depth.size(); p += 7) {
+            REQUIRE(depth[p] == uint16_t(std::lround(src.depth[p] / 0.1)));
+        }
+        for (size_t k = 0; k < fr.instances.size(); ++k) {
+            const Instance& in = fr.instances[k];
+            const RenderedInstance& gt = src.instances[k];
+            CHECK(in.obj_id == gt.obj_id);
+            CHECK((in.pose.R - gt.pose.R).cwiseAbs().maxCoeff() < 1e-12);
+            CHECK((in.pose.t - gt.pose.t).cwiseAbs().maxCoeff() < 1e-9);
+            CHECK(in.visib_fract == Approx(gt.visib_fract));
+            CHECK(in.bbox_visib.x == gt.bbox_visib.x);
+            CHECK(in.bbox_obj.h == gt.bbox_obj.h);
+            const Image mask = ds.load_mask(fr, in);
+            int64_t diff = 0;
+            for (size_t p = 0; p < src.mask.size(); ++p) {
+                diff += (mask.data[p] != 0) != (src.mask[p] == k + 1);
+            }
+            CHECK(diff == 0);
+        }
+    }
+    // Same seed, other thread count: identical files byte for byte.
+    const fs::path root2 = testing::temp_dir("render_bop2");
+    BopSceneWriter w2((root2 / "000000").string());
+    SceneGenerator gen2(cfg, m.list());
+    RenderedFrame f;
+    for (int i = 0; i < 2; ++i) {
+        gen2.render_frame(i, f, i == 0 ? 1 : 2);
+        w2.write(i, f);
+    }
+    w2.flush();
+    for (const char* file : {"scene_gt.json", "scene_gt_info.json", "scene_camera.json",
+                             "depth/000001.png", "rgb/000000.png", "mask/000001_000000.png"}) {
+        INFO(file);
+        CHECK(read_bytes(root / "train_synt" / "000000" / file) ==
+              read_bytes(root2 / "000000" / file));
+    }
+    fs::remove_all(root);
+    fs::remove_all(root2);
+}
+
+TEST_CASE("scene config JSON round-trips and rejects bad keys and values", "[data][scene]") {
+    SceneConfig c = small_config();
+    c.target_obj_ids = {3, 4};
+    c.noise.sigma_a_mm = 0.7;
+    c.euler_min = {-10, -20, -30};
+    c.full_rotation = false;
+    c.seed = 123456789012345ull;
+    const SceneConfig r = parse_scene_config(scene_config_to_json(c), "mem");
+    CHECK(scene_config_to_json(r) == scene_config_to_json(c));
+    CHECK(r.target_obj_ids == std::vector<int>{3, 4});
+    CHECK(r.noise.sigma_a_mm == 0.7);
+    CHECK(r.camera.width == 320);
+    CHECK(r.seed == 123456789012345ull);
+
+    REQUIRE_THROWS_WITH(parse_scene_config(R"({"z_min": 1500, "z_max": 500})", "s.json"),
+                        Contains("z range inverted: z_min 1500 > z_max 500"));
+    REQUIRE_THROWS_WITH(parse_scene_config(R"({"zmin": 1})", "s.json"),
+                        Contains("s.json: unknown key 'zmin'"));
+    REQUIRE_THROWS_WITH(parse_scene_config(R"({"noise": {"sigma_a_mm": "big"}})", "s.json"),
+                        Contains("s.json.noise.sigma_a_mm must be a number, got \"big\""));
+    REQUIRE_THROWS_WITH(parse_scene_config(R"({"targets_max": 2.5})", "s.json"),
+                        Contains("s.json.targets_max must be an integer, got 2.5"));
+    REQUIRE_THROWS_WITH(parse_scene_config("{\"z_min\": ", "s.json"),
+                        Contains("s.json: invalid JSON"));
+    REQUIRE_THROWS_WITH(parse_scene_config(R"({"xy_frac": 0})", "s.json"),
+                        Contains("xy_frac must be in (0, 1], got 0"));
+    REQUIRE_THROWS_WITH(load_scene_config("/nonexistent/scene.json"),
+                        Contains("/nonexistent/scene.json"));
+}
+
+TEST_CASE("scene generator rejects missing meshes, empty lists and unknown ids",
+          "[data][scene]") {
+    Models m;
+    SceneConfig cfg = small_config();
+    REQUIRE_THROWS_WITH(SceneGenerator(cfg, {}), Contains("empty model list"));
+    REQUIRE_THROWS_WITH(SceneGenerator(cfg, {{4, nullptr}}), Contains("obj_id 4 has a null mesh"));
+    REQUIRE_THROWS_WITH(SceneGenerator(cfg, {{1, &m.a}, {1, &m.b}}),
+                        Contains("duplicated obj_id 1"));
+    cfg.target_obj_ids = {1, 7};
+    REQUIRE_THROWS_WITH(SceneGenerator(cfg, m.list()),
+                        Contains("target obj_id 7 is not among the models (1, 2, 5)"));
+    cfg = small_config();
+    cfg.z_min = 900;
+    cfg.z_max = 400;
+    REQUIRE_THROWS_WITH(SceneGenerator(cfg, m.list()), Contains("z_min 900 > z_max 400"));
+    cfg = small_config();
+    cfg.targets_min = 3;
+    cfg.targets_max = 1;
+    REQUIRE_THROWS_WITH(SceneGenerator(cfg, m.list()), Contains("got 3 and 1"));
+}

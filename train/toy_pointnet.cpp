@@ -112,6 +112,9 @@ ToyResult train_toy_pointnet(const ToyConfig& cfg, const std::function<void(int,
     for (int step = 0; step < cfg.steps; ++step) {
         Tensor x, y;
         make_batch(cfg.batch, uint64_t(step) * uint64_t(cfg.batch) + 17, x, y);
+        // Step decay (x0.1 for the last third): BatchNorm's running statistics, used at test
+        // time, then settle on the final weights instead of lagging a moving network.
+        opt.set_lr(step < cfg.steps * 2 / 3 ? cfg.lr : cfg.lr * 0.1);
         opt.zero_grad();
         Tensor loss = nn::cross_entropy(net.forward(x), y);
         loss.backward();

@@ -1,0 +1,87 @@
+// SPDX-License-Identifier: MIT
+#include "nn/models/g2l_net.h"
+
+#include <cmath>
+
+namespace g2l::nn {
+
+namespace {
+
+const G2LConfig& checked(const G2LConfig& c) {
+    G2L_CHECK(c.num_classes >= 1, "G2LConfig: num_classes must be >= 1, got ", c.num_classes);
+    G2L_CHECK(c.num_keypoints >= 3, "G2LConfig: num_keypoints must be >= 3 (Kabsch), got ",
+              c.num_keypoints);
+    G2L_CHECK(std::isfinite(c.width) && c.width > 0,
+              "G2LConfig: width must be finite and > 0, got ", c.width);
+    G2L_CHECK(c.dropout >= 0 && c.dropout < 1, "G2LConfig: dropout must be in [0, 1), got ",
+              c.dropout);
+    G2L_CHECK(c.rre_dropout >= 0 && c.rre_dropout < 1,
+              "G2LConfig: rre_dropout must be in [0, 1), got ", c.rre_dropout);
+    return c;
+}
+
+// Parameters of `m` renamed "<prefix>.<name>".
+ParamGroup group(const std::string& name, const Module& m, double lr_mult, double wd) {
+    ParamGroup g;
+    g.name = name;
+    g.lr_mult = lr_mult;
+    g.weight_decay = wd;
+    for (auto& [n, t] : m.named_parameters()) g.params.emplace_back(name + "." + n, t);
+    return g;
+}
+
+}  // namespace
+
+G2LNet::G2LNet(const G2LConfig& config) : cfg_(checked(config)) {
+    // One initialisation stream, consumed in a fixed order; independent dropout streams.
+    Rng rng(cfg_.seed);
+    Rng seeds(cfg_.seed ^ 0xD1B54A32D192ED03ull);
+    const double w = cfg_.width, p = cfg_.dropout;
+    const int64_t C = cfg_.num_classes, K = cfg_.num_keypoints;
+    seg_ = register_module("seg", std::make_shared<SegNet>(w, C, p, rng, seeds.next_u64()));
+    tnet_ = register_module("tnet", std::make_shared<TNet>(w, C, p, rng, seeds.next_u64()));
+    if (cfg_.evf)
+        evf_ = register_module("evf", std::make_shared<EvfNet>(w, C, K, p, rng, seeds.next_u64()));
+    rot_ = register_module("rot",
+                           std::make_shared<RotNet>(w, C, K, cfg_.evf, p, rng, seeds.next_u64()));
+    if (cfg_.rre)
+        rre_ = register_module(
+            "rre", std::make_shared<RreNet>(w, C, K, cfg_.rre_dropout, rng, seeds.next_u64()));
+}
+
+Tensor G2LNet::seg_forward(const Tensor& x, const Tensor& onehot) {
+    return seg_->forward(x, onehot);
+}
+
+Tensor G2LNet::t_forward(const Tensor& x, const Tensor& onehot) {
+    return tnet_->forward(x, onehot);
+}
+
+RotOut G2LNet::rot_forward(const Tensor& x, const Tensor& onehot) {
+    RotOut out;
+    PointFeatures feat;
+    if (evf_) {
+        EvfOut a = evf_->forward(x, onehot);
+        out.vectors = a.vectors;
+        feat = a.feat;  // already detached
+        out.keypoints = rot_->forward(out.vectors, feat);
+    } else {
+        const PointFeatures live = rot_->features(x, onehot);
+        out.keypoints = rot_->forward(Tensor(), live);
+        feat = live.detached();
+    }
+    if (rre_) out.residual = rre_->forward(feat);
+    return out;
+}
+
+std::vector<ParamGroup> G2LNet::param_groups(const G2LLrMults& m, double wd) const {
+    std::vector<ParamGroup> groups;
+    groups.push_back(group("seg", *seg_, m.seg, wd));
+    groups.push_back(group("tnet", *tnet_, m.tnet, wd));
+    if (evf_) groups.push_back(group("evf", *evf_, m.evf, wd));
+    groups.push_back(group("rot", *rot_, m.rot, wd));
+    if (rre_) groups.push_back(group("rre", *rre_, m.rre, wd));
+    return groups;
+}
+
+}  // namespace g2l::nn

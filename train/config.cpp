@@ -1,0 +1,681 @@
+// SPDX-License-Identifier: MIT
+// TrainConfig <-> JSON. One visitor (visit_config) lists every key once; a strict Reader, a
+// Writer and the --set machinery are driven by it, so parse and print cannot drift apart.
+#include "train/config.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+
+#include "core/dtype.h"
+#include "core/error.h"
+
+namespace g2l::train {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::ordered_json;
+using Choices = std::vector<std::string>;
+
+std::string join_key(const std::string& path, const std::string& key) {
+    return path.empty() ? key : path + "." + key;
+}
+
+std::string list_str(const Choices& v, bool quote) {
+    std::string s;
+    for (const auto& x : v) s += (s.empty() ? "" : ", ") + (quote ? "\"" + x + "\"" : x);
+    return s;
+}
+
+/// Strict reader of one JSON object: every key read is remembered, finish() rejects the rest.
+class Reader {
+public:
+    Reader(const json& j, std::string path, const std::string& src)
+        : j_(j), path_(std::move(path)), src_(src) {}
+
+    /// Fails unless key k is present.
+    void require(const char* k) const {
+        G2L_CHECK(j_.contains(k), src_, ": '", at(k), "' is required");
+    }
+    void num(const char* k, double& v) {
+        if (const json* x = find(k)) {
+            G2L_CHECK(x->is_number(), src_, ": '", at(k), "' must be a number, got ", x->dump());
+            v = x->get<double>();
+        }
+    }
+    template <class T>
+    void integer(const char* k, T& v) {
+        if (const json* x = find(k)) v = as_int<T>(*x, at(k));
+    }
+    void boolean(const char* k, bool& v) {
+        if (const json* x = find(k)) {
+            G2L_CHECK(x->is_boolean(), src_, ": '", at(k), "' must be true or false, got ",
+                      x->dump());
+            v = x->get<bool>();
+        }
+    }
+    void text(const char* k, std::string& v) {
+        if (const json* x = find(k)) v = as_text(*x, at(k));
+    }
+    void choice(const char* k, std::string& v, const Choices& allowed) {
+        if (const json* x = find(k)) {
+            const std::string s = as_text(*x, at(k));
+            G2L_CHECK(std::find(allowed.begin(), allowed.end(), s) != allowed.end(), src_, ": '",
+                      at(k), "' must be one of ", list_str(allowed, true), ", got ", x->dump());
+            v = s;
+        }
+    }
+    void ints(const char* k, std::vector<int>& v) {
+        if (const json* x = find(k)) {
+            G2L_CHECK(x->is_array(), src_, ": '", at(k), "' must be an array of integers, got ",
+                      x->dump());
+            v.clear();
+            for (size_t i = 0; i < x->size(); ++i)
+                v.push_back(as_int<int>((*x)[i], cat(at(k), "[", i, "]")));
+        }
+    }
+    void texts(const char* k, std::vector<std::string>& v) {
+        if (const json* x = find(k)) {
+            G2L_CHECK(x->is_array(), src_, ": '", at(k), "' must be an array of strings, got ",
+                      x->dump());
+            v.clear();
+            for (size_t i = 0; i < x->size(); ++i)
+                v.push_back(as_text((*x)[i], cat(at(k), "[", i, "]")));
+        }
+    }
+    void num3(const char* k, std::array<double, 3>& v) {
+        if (const json* x = find(k)) {
+            G2L_CHECK(x->is_array() && x->size() == 3, src_, ": '", at(k),
+                      "' must be an array of 3 numbers, got ", x->dump());
+            for (size_t i = 0; i < 3; ++i) {
+                G2L_CHECK((*x)[i].is_number(), src_, ": '", at(k), "[", i,
+                          "]' must be a number, got ", (*x)[i].dump());
+                v[i] = (*x)[i].get<double>();
+            }
+        }
+    }
+    /// A JSON object kept as text (checked later by its own parser).
+    void raw_object(const char* k, std::string& v) {
+        if (const json* x = find(k)) {
+            G2L_CHECK(x->is_object(), src_, ": '", at(k), "' must be a JSON object, got ",
+                      x->dump());
+            v = x->dump();
+        }
+    }
+    template <class F>
+    void object(const char* k, F&& f) {
+        if (const json* x = find(k)) {
+            G2L_CHECK(x->is_object(), src_, ": '", at(k), "' must be a JSON object, got ",
+                      x->dump());
+            Reader sub(*x, at(k), src_);
+            f(sub);
+            sub.finish();
+        }
+    }
+    /// An array of objects; f(Reader&, element) is called for each.
+    template <class T, class F>
+    void list(const char* k, std::vector<T>& v, F&& f) {
+        if (const json* x = find(k)) {
+            G2L_CHECK(x->is_array(), src_, ": '", at(k), "' must be an array of objects, got ",
+                      x->dump());
+            v.assign(x->size(), T{});
+            for (size_t i = 0; i < x->size(); ++i) {
+                const std::string p = cat(at(k), "[", i, "]");
+                G2L_CHECK((*x)[i].is_object(), src_, ": '", p, "' must be a JSON object, got ",
+                          (*x)[i].dump());
+                Reader sub((*x)[i], p, src_);
+                f(sub, v[i]);
+                sub.finish();
+            }
+        }
+    }
+    /// Rejects every key that was not read, listing the known ones.
+    void finish() const {
+        for (auto it = j_.begin(); it != j_.end(); ++it) {
+            if (seen_.count(it.key())) continue;
+            G2L_CHECK(false, src_, ": unknown key '", at(it.key()), "' (known: ",
+                      list_str(Choices(known_.begin(), known_.end()), false), ")");
+        }
+    }
+
+private:
+    const json* find(const char* k) {
+        known_.push_back(k);
+        seen_.insert(k);
+        const auto it = j_.find(k);
+        return it == j_.end() ? nullptr : &*it;
+    }
+    std::string at(const std::string& k) const { return join_key(path_, k); }
+    std::string as_text(const json& x, const std::string& p) const {
+        G2L_CHECK(x.is_string(), src_, ": '", p, "' must be a string, got ", x.dump());
+        return x.get<std::string>();
+    }
+    template <class T>
+    T as_int(const json& x, const std::string& p) const {
+        bool ok = false;
+        if (x.is_number_unsigned()) {
+            ok = x.get<uint64_t>() <= uint64_t(std::numeric_limits<T>::max());
+        } else if (x.is_number_integer()) {
+            const int64_t i = x.get<int64_t>();
+            ok = i < 0 ? std::is_signed<T>::value && i >= int64_t(std::numeric_limits<T>::min())
+                       : uint64_t(i) <= uint64_t(std::numeric_limits<T>::max());
+        }
+        G2L_CHECK(ok, src_, ": '", p, "' must be ",
+                  std::is_signed<T>::value ? "an integer" : "a non-negative integer",
+                  " in the range of ", sizeof(T) * 8, " bits, got ", x.dump());
+        return x.get<T>();
+    }
+
+    const json& j_;
+    std::string path_;
+    const std::string& src_;
+    std::set<std::string> seen_;
+    std::vector<std::string> known_;
+};
+
+/// Writes every visited field into a JSON object, in visiting order.
+class Writer {
+public:
+    explicit Writer(json& j) : j_(j) {}
+    void require(const char*) const {}
+    void num(const char* k, double v) { j_[k] = v; }
+    template <class T>
+    void integer(const char* k, T v) { j_[k] = v; }
+    void boolean(const char* k, bool v) { j_[k] = v; }
+    void text(const char* k, const std::string& v) { j_[k] = v; }
+    void choice(const char* k, const std::string& v, const Choices&) { j_[k] = v; }
+    void ints(const char* k, const std::vector<int>& v) { j_[k] = v; }
+    void texts(const char* k, const std::vector<std::string>& v) { j_[k] = v; }
+    void num3(const char* k, const std::array<double, 3>& v) { j_[k] = v; }
+    void raw_object(const char* k, const std::string& v) {
+        json x;
+        try {
+            x = json::parse(v);
+        } catch (const json::exception& e) {
+            G2L_CHECK(false, "config_to_json: '", k, "' holds invalid JSON text: ", e.what());
+        }
+        j_[k] = std::move(x);
+    }
+    template <class F>
+    void object(const char* k, F&& f) {
+        json sub = json::object();
+        Writer w(sub);
+        f(w);
+        j_[k] = std::move(sub);
+    }
+    template <class T, class F>
+    void list(const char* k, std::vector<T>& v, F&& f) {
+        json arr = json::array();
+        for (T& e : v) {
+            json sub = json::object();
+            Writer w(sub);
+            f(w, e);
+            arr.push_back(std::move(sub));
+        }
+        j_[k] = std::move(arr);
+    }
+
+private:
+    json& j_;
+};
+
+const Choices kSourceTypes{"bop", "synthetic"};
+const Choices kCrops{"sphere", "frustum", "slab"};
+const Choices kKeypoints{"bbx8", "fps4", "fps8", "fps12"};
+const Choices kTLosses{"mse", "smooth_l1"};
+const Choices kSchedules{"step", "official", "constant"};
+
+template <class IO>
+void visit_source(IO& io, SourceConfig& s) {
+    io.require("type");
+    io.choice("type", s.type, kSourceTypes);
+    if (s.type == "bop") {
+        io.text("root", s.root);
+        io.text("split", s.split);
+        io.texts("scenes", s.scenes);
+        io.ints("objects", s.objects);
+        io.boolean("models_eval", s.models_eval);
+        io.num("min_visib_fract", s.min_visib_fract);
+        io.integer("max_frames", s.max_frames);
+    } else {
+        io.text("models_root", s.models_root);
+        io.ints("objects", s.objects);
+        io.integer("frames", s.frames);
+        io.raw_object("scene", s.scene);
+    }
+}
+
+/// Every key of the config, once. IO is Reader (parse) or Writer (print).
+template <class IO>
+void visit_config(IO& io, TrainConfig& c) {
+    io.text("name", c.name);
+    io.integer("seed", c.seed);
+    io.integer("threads", c.threads);
+    io.text("device", c.device);
+    io.text("run_dir", c.run_dir);
+    io.object("data", [&](IO& d) {
+        d.ints("object_ids", c.data.object_ids);
+        d.list("train", c.data.train, [](IO& s, SourceConfig& e) { visit_source(s, e); });
+        d.list("val", c.data.val, [](IO& s, SourceConfig& e) { visit_source(s, e); });
+    });
+    io.object("sampling", [&](IO& s) {
+        SamplingConfig& p = c.sampling;
+        s.choice("crop", p.crop, kCrops);
+        s.integer("points", p.points);
+        s.integer("seg_points", p.seg_points);
+        s.num("radius_scale", p.radius_scale);
+        s.num("center_jitter_mm", p.center_jitter_mm);
+        s.num("box_jitter_frac", p.box_jitter_frac);
+        s.num("label_threshold_mm", p.label_threshold_mm);
+        s.num("surface_spacing_mm", p.surface_spacing_mm);
+        s.integer("min_points", p.min_points);
+        s.num("min_visib_fract", p.min_visib_fract);
+    });
+    io.object("augment", [&](IO& a) {
+        a.boolean("enabled", c.augment.enabled);
+        a.num3("shift_mm", c.augment.shift_mm);
+        a.num("rot_deg", c.augment.rot_deg);
+        a.num("point_noise_mm", c.augment.point_noise_mm);
+    });
+    io.object("model", [&](IO& m) {
+        m.integer("num_classes", c.model.num_classes);
+        m.choice("keypoints", c.model.keypoints, kKeypoints);
+        m.boolean("evf", c.model.evf);
+        m.boolean("rre", c.model.rre);
+        m.num("width", c.model.width);
+        m.num("dropout", c.model.dropout);
+    });
+    io.object("loss", [&](IO& l) {
+        l.num("seg", c.loss.seg);
+        l.num("t", c.loss.t);
+        l.num("vec", c.loss.vec);
+        l.num("kp", c.loss.kp);
+        l.num("res", c.loss.res);
+        l.choice("t_loss", c.loss.t_loss, kTLosses);
+    });
+    io.object("optim", [&](IO& o) {
+        OptimConfig& p = c.optim;
+        o.num("lr", p.lr);
+        o.num("beta1", p.beta1);
+        o.num("beta2", p.beta2);
+        o.num("eps", p.eps);
+        o.num("weight_decay", p.weight_decay);
+        o.object("lr_mult", [&](IO& m) {
+            m.num("seg", p.lr_mult.seg);
+            m.num("tnet", p.lr_mult.tnet);
+            m.num("evf", p.lr_mult.evf);
+            m.num("rot", p.lr_mult.rot);
+            m.num("rre", p.lr_mult.rre);
+        });
+    });
+    io.object("schedule", [&](IO& s) {
+        s.choice("kind", c.schedule.kind, kSchedules);
+        s.integer("step_epochs", c.schedule.step_epochs);
+        s.num("gamma", c.schedule.gamma);
+    });
+    io.object("train", [&](IO& t) {
+        LoopConfig& p = c.train;
+        t.integer("epochs", p.epochs);
+        t.integer("batch", p.batch);
+        t.integer("samples_per_epoch", p.samples_per_epoch);
+        t.integer("checkpoint_every", p.checkpoint_every);
+        t.integer("val_every", p.val_every);
+        t.integer("max_val_samples", p.max_val_samples);
+        t.num("time_limit_min", p.time_limit_min);
+        t.integer("log_every", p.log_every);
+    });
+}
+
+json parse_json(const std::string& text, const std::string& source) {
+    try {
+        return json::parse(text);
+    } catch (const json::parse_error& e) {
+        G2L_CHECK(false, source, ": invalid JSON: ", e.what());
+    }
+    return {};
+}
+
+TrainConfig read_config(const json& j, const std::string& source) {
+    G2L_CHECK(j.is_object(), source, ": the config must be a JSON object, got ", j.type_name());
+    TrainConfig c;
+    Reader r(j, "", source);
+    visit_config(r, c);
+    r.finish();
+    return c;
+}
+
+json write_config(const TrainConfig& cfg) {
+    TrainConfig c = cfg;
+    json j = json::object();
+    Writer w(j);
+    visit_config(w, c);
+    return j;
+}
+
+bool all_digits(const std::string& s) {
+    return !s.empty() &&
+           std::all_of(s.begin(), s.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
+}
+
+/// Applies one "a.b.c=value" to the full JSON of a config. Inside a source's "scene" object new
+/// keys may be created (the scene parser checks them); everywhere else the path must exist.
+void apply_set(json& root, const std::string& set, const std::string& source) {
+    const std::string where = cat(source, ": --set '", set, "'");
+    const size_t eq = set.find('=');
+    G2L_CHECK(eq != std::string::npos && eq > 0, where, ": expected key.path=value");
+    const std::string key = set.substr(0, eq), value_text = set.substr(eq + 1);
+    std::vector<std::string> parts;
+    std::stringstream ss(key);
+    for (std::string p; std::getline(ss, p, '.');) parts.push_back(p);
+    G2L_CHECK(!parts.empty() && key.back() != '.' &&
+                  std::none_of(parts.begin(), parts.end(), [](const auto& p) { return p.empty(); }),
+              where, ": empty component in key path '", key, "'");
+    json value;
+    try {
+        value = json::parse(value_text);
+    } catch (const json::exception&) {
+        value = value_text;  // not JSON: a plain string
+    }
+    json* cur = &root;
+    std::string path;
+    bool in_scene = false;
+    for (size_t i = 0; i < parts.size(); ++i) {
+        const std::string& p = parts[i];
+        if (cur->is_array()) {
+            G2L_CHECK(all_digits(p) && p.size() < 10 && std::stoul(p) < cur->size(), where,
+                      ": '", path, "' is a list of ", cur->size(), " element(s), '", p,
+                      "' is not a valid index");
+            cur = &(*cur)[std::stoul(p)];
+            path += "." + p;
+            continue;
+        }
+        if (!cur->is_object()) {
+            G2L_CHECK(false, where, ": '", path, "' is a ", cur->type_name(),
+                      ", it has no key '", p, "'");
+        }
+        const std::string next = join_key(path, p);
+        if (!cur->contains(p)) {
+            if (in_scene) {
+                (*cur)[p] = i + 1 < parts.size() ? json::object() : json();
+            } else {
+                Choices known;
+                for (auto it = cur->begin(); it != cur->end(); ++it) known.push_back(it.key());
+                G2L_CHECK(false, where, ": unknown key '", next, "' (known: ",
+                          list_str(known, false), ")");
+            }
+        }
+        in_scene = in_scene || (p == "scene" && path.rfind("data.", 0) == 0);
+        cur = &(*cur)[p];
+        path = next;
+    }
+    *cur = std::move(value);
+}
+
+std::string stem_of(const std::string& source) {
+    const std::string s = fs::path(source).stem().string();
+    return s.empty() ? std::string("g2l") : s;
+}
+
+/// Fills name/run_dir defaults and resolves the dataset paths.
+void finalize(TrainConfig& c, const std::string& source, const std::string& base_dir) {
+    if (c.name.empty()) c.name = stem_of(source);
+    if (c.run_dir.empty()) c.run_dir = "runs/" + c.name;
+    auto resolve = [&](std::vector<SourceConfig>& list, const char* which) {
+        for (size_t i = 0; i < list.size(); ++i) {
+            SourceConfig& s = list[i];
+            std::string& p = s.type == "bop" ? s.root : s.models_root;
+            const char* key = s.type == "bop" ? "root" : "models_root";
+            G2L_CHECK(!p.empty(), source, ": 'data.", which, "[", i, "].", key,
+                      "' must be set for a \"", s.type, "\" source");
+            try {
+                p = resolve_config_path(p, base_dir);
+            } catch (const Error& e) {
+                G2L_CHECK(false, source, ": 'data.", which, "[", i, "].", key, "': ", e.what());
+            }
+        }
+    };
+    resolve(c.data.train, "train");
+    resolve(c.data.val, "val");
+}
+
+void check_sources(const TrainConfig& c, const std::vector<SourceConfig>& list,
+                   const char* which, const std::string& where) {
+    for (size_t i = 0; i < list.size(); ++i) {
+        const SourceConfig& s = list[i];
+        const std::string p = cat("data.", which, "[", i, "]");
+        G2L_CHECK(s.type == "bop" || s.type == "synthetic", where, ": '", p,
+                  ".type' must be \"bop\" or \"synthetic\", got \"", s.type, "\"");
+        for (size_t k = 0; k < s.objects.size(); ++k) {
+            const int id = s.objects[k];
+            G2L_CHECK(std::count(c.data.object_ids.begin(), c.data.object_ids.end(), id) == 1,
+                      where, ": '", p, ".objects[", k, "]' = ", id,
+                      " is not in data.object_ids (every object needs a class)");
+        }
+        if (s.type == "bop") {
+            G2L_CHECK(!s.root.empty(), where, ": '", p, ".root' must be set");
+            G2L_CHECK(!s.split.empty(), where, ": '", p, ".split' must not be empty");
+            G2L_CHECK(s.min_visib_fract >= 0 && s.min_visib_fract <= 1, where, ": '", p,
+                      ".min_visib_fract' must be in [0, 1], got ", s.min_visib_fract);
+            G2L_CHECK(s.max_frames >= 0, where, ": '", p, ".max_frames' must be >= 0, got ",
+                      s.max_frames);
+        } else {
+            G2L_CHECK(!s.models_root.empty(), where, ": '", p, ".models_root' must be set");
+            G2L_CHECK(s.frames > 0, where, ": '", p, ".frames' must be > 0, got ", s.frames);
+            const data::SceneConfig sc = source_scene(s, cat(where, ": ", p, ".scene"));
+            const std::vector<int>& allowed = s.objects.empty() ? c.data.object_ids : s.objects;
+            for (size_t k = 0; k < sc.target_obj_ids.size(); ++k) {
+                const int id = sc.target_obj_ids[k];
+                G2L_CHECK(std::count(allowed.begin(), allowed.end(), id) > 0, where, ": '", p,
+                          ".scene.target_obj_ids[", k, "]' = ", id, " is not among the ",
+                          s.objects.empty() ? "data.object_ids" : "source's objects");
+            }
+        }
+    }
+}
+
+bool finite_in(double v, double lo, double hi) { return std::isfinite(v) && v >= lo && v <= hi; }
+
+}  // namespace
+
+std::string shared_data_root(const std::string& base_dir) {
+    if (const char* env = std::getenv("G2L_SHARED_DATA"); env && *env)
+        return fs::absolute(env).lexically_normal().string();
+    std::error_code ec;
+    const fs::path base = fs::absolute(base_dir.empty() ? fs::current_path() : fs::path(base_dir));
+    for (const fs::path& start : {base, fs::current_path()}) {
+        for (fs::path a = start.lexically_normal();; a = a.parent_path()) {
+            if (fs::is_directory(a / "shared" / "data", ec))
+                return (a / "shared" / "data").lexically_normal().string();
+            if (a == a.parent_path() || a.empty()) break;
+        }
+    }
+    return (base / ".." / ".." / "shared" / "data").lexically_normal().string();
+}
+
+std::string resolve_config_path(const std::string& value, const std::string& base_dir) {
+    G2L_CHECK(!value.empty(), "empty path");
+    static const std::string kShared = "${G2L_SHARED}";
+    fs::path p;
+    if (value.rfind(kShared, 0) == 0) {
+        std::string rest = value.substr(kShared.size());
+        G2L_CHECK(rest.empty() || rest[0] == '/', "'", value, "': ${G2L_SHARED} must be followed",
+                  " by '/' or nothing");
+        while (!rest.empty() && rest[0] == '/') rest.erase(0, 1);
+        p = fs::path(shared_data_root(base_dir)) / rest;
+    } else {
+        G2L_CHECK(value.find("${") == std::string::npos, "'", value,
+                  "': the only variable allowed in a path is ${G2L_SHARED} (as its prefix)");
+        p = value;
+        if (p.is_relative()) {
+            std::error_code ec;
+            if (!fs::exists(p, ec) && !base_dir.empty()) p = fs::path(base_dir) / p;
+        }
+    }
+    std::string out = fs::absolute(p).lexically_normal().string();
+    while (out.size() > 1 && out.back() == '/') out.pop_back();
+    return out;
+}
+
+data::SceneConfig source_scene(const SourceConfig& src, const std::string& where) {
+    G2L_CHECK(src.type == "synthetic", where, ": not a synthetic source (type \"", src.type,
+              "\")");
+    return data::parse_scene_config(src.scene, where);
+}
+
+void validate(const TrainConfig& c, const std::string& where) {
+    try {
+        parse_device(c.device);
+    } catch (const Error& e) {
+        G2L_CHECK(false, where, ": 'device' must be \"cpu\", \"cuda\" or \"cuda:N\", got \"",
+                  c.device, "\" (", e.what(), ")");
+    }
+    G2L_CHECK(c.threads >= 0, where, ": 'threads' must be >= 0 (0 = all), got ", c.threads);
+    G2L_CHECK(!c.name.empty(), where, ": 'name' must not be empty");
+    G2L_CHECK(!c.run_dir.empty(), where, ": 'run_dir' must not be empty");
+
+    const std::vector<int>& ids = c.data.object_ids;
+    G2L_CHECK(!ids.empty(), where, ": 'data.object_ids' must list at least one object");
+    for (size_t i = 0; i < ids.size(); ++i) {
+        G2L_CHECK(ids[i] > 0, where, ": 'data.object_ids[", i, "]' must be > 0, got ", ids[i]);
+        G2L_CHECK(std::count(ids.begin(), ids.end(), ids[i]) == 1, where,
+                  ": 'data.object_ids' lists object ", ids[i], " twice");
+    }
+    G2L_CHECK(c.model.num_classes >= int64_t(ids.size()), where, ": 'model.num_classes' = ",
+              c.model.num_classes, " is smaller than the ", ids.size(),
+              " objects of data.object_ids");
+    G2L_CHECK(!c.data.train.empty(), where, ": 'data.train' must list at least one source");
+    check_sources(c, c.data.train, "train", where);
+    check_sources(c, c.data.val, "val", where);
+
+    const SamplingConfig& s = c.sampling;
+    G2L_CHECK(s.crop == "sphere" || s.crop == "frustum" || s.crop == "slab", where,
+              ": 'sampling.crop' must be one of ", list_str(kCrops, true), ", got \"", s.crop,
+              "\"");
+    G2L_CHECK(s.seg_points > 0, where, ": 'sampling.seg_points' must be > 0, got ",
+              s.seg_points);
+    G2L_CHECK(s.points >= s.seg_points, where, ": 'sampling.points' = ", s.points,
+              " must be >= 'sampling.seg_points' = ", s.seg_points);
+    G2L_CHECK(s.radius_scale > 0 && std::isfinite(s.radius_scale), where,
+              ": 'sampling.radius_scale' must be > 0, got ", s.radius_scale);
+    G2L_CHECK(finite_in(s.center_jitter_mm, 0, 1e6), where,
+              ": 'sampling.center_jitter_mm' must be >= 0, got ", s.center_jitter_mm);
+    G2L_CHECK(finite_in(s.box_jitter_frac, 0, 0.5), where,
+              ": 'sampling.box_jitter_frac' must be in [0, 0.5], got ", s.box_jitter_frac);
+    G2L_CHECK(s.label_threshold_mm > 0 && std::isfinite(s.label_threshold_mm), where,
+              ": 'sampling.label_threshold_mm' must be > 0, got ", s.label_threshold_mm);
+    G2L_CHECK(s.surface_spacing_mm > 0 && std::isfinite(s.surface_spacing_mm), where,
+              ": 'sampling.surface_spacing_mm' must be > 0, got ", s.surface_spacing_mm);
+    G2L_CHECK(s.min_points > 0, where, ": 'sampling.min_points' must be > 0, got ",
+              s.min_points);
+    G2L_CHECK(finite_in(s.min_visib_fract, 0, 1), where,
+              ": 'sampling.min_visib_fract' must be in [0, 1], got ", s.min_visib_fract);
+
+    const AugmentConfig& a = c.augment;
+    for (int k = 0; k < 3; ++k)
+        G2L_CHECK(finite_in(a.shift_mm[k], 0, 1e6), where, ": 'augment.shift_mm[", k,
+                  "]' must be >= 0, got ", a.shift_mm[k]);
+    G2L_CHECK(finite_in(a.rot_deg, 0, 180), where, ": 'augment.rot_deg' must be in [0, 180], got ",
+              a.rot_deg);
+    G2L_CHECK(finite_in(a.point_noise_mm, 0, 1e6), where,
+              ": 'augment.point_noise_mm' must be >= 0, got ", a.point_noise_mm);
+
+    const ModelConfig& m = c.model;
+    G2L_CHECK(std::find(kKeypoints.begin(), kKeypoints.end(), m.keypoints) != kKeypoints.end(),
+              where, ": 'model.keypoints' must be one of ", list_str(kKeypoints, true),
+              ", got \"", m.keypoints, "\"");
+    G2L_CHECK(m.width > 0 && std::isfinite(m.width), where, ": 'model.width' must be > 0, got ",
+              m.width);
+    G2L_CHECK(std::isfinite(m.dropout) && m.dropout >= 0 && m.dropout < 1, where,
+              ": 'model.dropout' must be in [0, 1), got ", m.dropout);
+
+    const LossConfig& l = c.loss;
+    const std::pair<const char*, double> weights[] = {
+        {"seg", l.seg}, {"t", l.t}, {"vec", l.vec}, {"kp", l.kp}, {"res", l.res}};
+    double total = 0;
+    for (const auto& [k, w] : weights) {
+        G2L_CHECK(finite_in(w, 0, 1e12), where, ": 'loss.", k, "' must be >= 0, got ", w);
+        total += w;
+    }
+    G2L_CHECK(total > 0, where, ": every loss weight is 0 (nothing to train)");
+    G2L_CHECK(l.t_loss == "mse" || l.t_loss == "smooth_l1", where,
+              ": 'loss.t_loss' must be one of ", list_str(kTLosses, true), ", got \"", l.t_loss,
+              "\"");
+
+    const OptimConfig& o = c.optim;
+    G2L_CHECK(o.lr > 0 && std::isfinite(o.lr), where, ": 'optim.lr' must be > 0, got ", o.lr);
+    G2L_CHECK(finite_in(o.beta1, 0, 1) && o.beta1 < 1, where,
+              ": 'optim.beta1' must be in [0, 1), got ", o.beta1);
+    G2L_CHECK(finite_in(o.beta2, 0, 1) && o.beta2 < 1, where,
+              ": 'optim.beta2' must be in [0, 1), got ", o.beta2);
+    G2L_CHECK(o.eps > 0 && std::isfinite(o.eps), where, ": 'optim.eps' must be > 0, got ", o.eps);
+    G2L_CHECK(finite_in(o.weight_decay, 0, 1e12), where,
+              ": 'optim.weight_decay' must be >= 0, got ", o.weight_decay);
+    const std::pair<const char*, double> mults[] = {{"seg", o.lr_mult.seg},
+                                                    {"tnet", o.lr_mult.tnet},
+                                                    {"evf", o.lr_mult.evf},
+                                                    {"rot", o.lr_mult.rot},
+                                                    {"rre", o.lr_mult.rre}};
+    for (const auto& [k, v] : mults)
+        G2L_CHECK(finite_in(v, 0, 1e12), where, ": 'optim.lr_mult.", k, "' must be >= 0, got ",
+                  v);
+
+    const ScheduleConfig& sc = c.schedule;
+    G2L_CHECK(std::find(kSchedules.begin(), kSchedules.end(), sc.kind) != kSchedules.end(),
+              where, ": 'schedule.kind' must be one of ", list_str(kSchedules, true), ", got \"",
+              sc.kind, "\"");
+    G2L_CHECK(sc.step_epochs > 0, where, ": 'schedule.step_epochs' must be > 0, got ",
+              sc.step_epochs);
+    G2L_CHECK(sc.gamma > 0 && sc.gamma <= 1, where, ": 'schedule.gamma' must be in (0, 1], got ",
+              sc.gamma);
+
+    const LoopConfig& t = c.train;
+    G2L_CHECK(t.epochs > 0, where, ": 'train.epochs' must be > 0, got ", t.epochs);
+    G2L_CHECK(t.batch > 0, where, ": 'train.batch' must be > 0, got ", t.batch);
+    G2L_CHECK(t.samples_per_epoch >= 0, where,
+              ": 'train.samples_per_epoch' must be >= 0 (0 = all), got ", t.samples_per_epoch);
+    G2L_CHECK(t.checkpoint_every >= 0, where, ": 'train.checkpoint_every' must be >= 0, got ",
+              t.checkpoint_every);
+    G2L_CHECK(t.val_every >= 0, where, ": 'train.val_every' must be >= 0, got ", t.val_every);
+    G2L_CHECK(t.max_val_samples >= 0, where, ": 'train.max_val_samples' must be >= 0, got ",
+              t.max_val_samples);
+    G2L_CHECK(finite_in(t.time_limit_min, 0, 1e9), where,
+              ": 'train.time_limit_min' must be >= 0 (0 = none), got ", t.time_limit_min);
+    G2L_CHECK(t.log_every > 0, where, ": 'train.log_every' must be > 0, got ", t.log_every);
+}
+
+TrainConfig parse_config_text(const std::string& json_text, const std::string& source_name,
+                              const std::vector<std::string>& sets,
+                              const std::string& base_dir) {
+    TrainConfig c = read_config(parse_json(json_text, source_name), source_name);
+    for (const std::string& s : sets) {
+        json full = write_config(c);
+        apply_set(full, s, source_name);
+        c = read_config(full, cat(source_name, " (--set '", s, "')"));
+    }
+    finalize(c, source_name, base_dir);
+    validate(c, source_name);
+    return c;
+}
+
+TrainConfig load_config(const std::string& path, const std::vector<std::string>& sets) {
+    std::error_code ec;
+    G2L_CHECK(fs::is_regular_file(path, ec), "load_config: config file '", path,
+              "' does not exist or is not a file");
+    std::ifstream f(path, std::ios::binary);
+    G2L_CHECK(f.good(), "load_config: cannot open config file '", path, "'");
+    std::ostringstream text;
+    text << f.rdbuf();
+    G2L_CHECK(!f.bad(), "load_config: error reading config file '", path, "'");
+    std::string dir = fs::absolute(path).parent_path().lexically_normal().string();
+    return parse_config_text(text.str(), path, sets, dir);
+}
+
+std::string config_to_json(const TrainConfig& cfg) { return write_config(cfg).dump(2) + "\n"; }
+
+}  // namespace g2l::train

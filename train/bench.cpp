@@ -7,7 +7,10 @@
 #include "core/autograd.h"
 #include "core/rng.h"
 #include "kernels/gemm.h"
+#include "nn/models/g2l_net.h"
 #include "nn/ops/linear.h"
+#include "nn/optim.h"
+#include "train/pipeline.h"
 
 namespace g2l::train {
 
@@ -81,6 +84,51 @@ std::vector<BenchFigure> bench_engine(int reps, bool quick) {
         bench_shared_mlp(out, "rre_conv1_b8", 8, 2256, 1000, 256, std::max(1, reps / 2));
     }
     return out;
+}
+
+std::vector<BenchFigure> bench_training(int reps, double width, int batch, int points,
+                                        int seg_points) {
+    const int classes = 16, K = 8;
+    nn::G2LConfig mc;
+    mc.num_classes = classes;
+    mc.width = width;
+    nn::G2LNet net(mc);
+    nn::Adam adam(net.param_groups(), nn::AdamOptions{});
+    // Random crops: a 100 mm object blob (label 1) inside a 300 mm background cloud.
+    Rng rng(5);
+    std::vector<PoseSample> batch_samples(static_cast<size_t>(batch));
+    for (int b = 0; b < batch; ++b) {
+        PoseSample& s = batch_samples[size_t(b)];
+        s.obj_id = b % classes + 1;
+        s.class_index = b % classes;
+        s.points.resize(size_t(points) * 3);
+        s.labels.resize(size_t(points));
+        for (int n = 0; n < points; ++n) {
+            const bool obj = n % 2 == 0;
+            s.labels[size_t(n)] = obj;
+            for (int c = 0; c < 3; ++c)
+                s.points[size_t(n) * 3 + size_t(c)] = float(rng.uniform(-1, 1) * (obj ? 50 : 150));
+        }
+        s.num_object_points = points / 2;
+    }
+    KeypointTable kps(static_cast<size_t>(classes));
+    for (auto& k : kps)
+        for (int i = 0; i < K; ++i)
+            k.emplace_back(float((i & 1) ? 40 : -40), float((i & 2) ? 30 : -30),
+                           float((i & 4) ? 50 : -50));
+    LossWeights lw;
+    Rng step_rng(9);
+    const double t = median_seconds([&] {
+        adam.zero_grad();
+        StepLosses L = g2l_step(net, batch_samples, kps, classes, seg_points, lw, step_rng);
+        L.total.backward();
+        adam.step();
+    }, reps, 1);
+    const std::string what = "G2L-Net step (width " + std::to_string(width).substr(0, 4) +
+                             ", batch " + std::to_string(batch) + ", " + std::to_string(points) +
+                             " -> " + std::to_string(seg_points) + " points)";
+    return {{"train_samples_per_s", batch / t, "samples/s", what},
+            {"train_step_ms", t * 1e3, "ms", what}};
 }
 
 }  // namespace g2l::train

@@ -23,4 +23,10 @@ double median_seconds(const std::function<void()>& fn, int reps, int warmup = 1)
 /// gemm_peak_gflops (2048^3), plus per-layer timings of G2L-Net's largest shared MLPs.
 std::vector<BenchFigure> bench_engine(int reps, bool quick);
 
+/// Training throughput of G2L-Net: forward + losses + backward + Adam on random crops
+/// (`points` per crop, `seg_points` after segmentation, batch `batch`, width multiplier `width`).
+/// Figure "train_samples_per_s" (plus per-step milliseconds).
+std::vector<BenchFigure> bench_training(int reps, double width, int batch, int points,
+                                        int seg_points);
+
 }  // namespace g2l::train

@@ -13,17 +13,28 @@ int main(int argc, char** argv) {
     CLI::App app{"g2l_bench: times the g2l engine on G2L-Net layer shapes (medians of repeated "
                  "runs). Figures are machine-dependent; see docs/results.md for recorded ones."};
     bool json = false, quick = false;
-    int reps = 7, threads = 0;
+    int reps = 7, threads = 0, train_reps = 5;
+    double width = 1.0;
     app.add_flag("--json", json, "print one JSON object instead of a table");
     app.add_flag("--quick", quick, "fewer and smaller measurements (for smoke tests)");
     app.add_option("--reps", reps, "timed repetitions per figure (median reported)")
         ->check(CLI::Range(1, 1000));
     app.add_option("--threads", threads, "OpenMP threads (0 = OMP_NUM_THREADS / all cores)")
         ->check(CLI::Range(0, 1024));
+    app.add_option("--train-reps", train_reps, "timed G2L-Net training steps (0 = skip)")
+        ->check(CLI::Range(0, 1000));
+    app.add_option("--width", width, "G2L-Net width multiplier for the training figure")
+        ->check(CLI::Range(0.01, 4.0));
     CLI11_PARSE(app, argc, argv);
     try {
         if (threads > 0) g2l::set_num_threads(threads);
-        const auto figs = g2l::train::bench_engine(reps, quick);
+        auto figs = g2l::train::bench_engine(reps, quick);
+        if (train_reps > 0) {
+            // The setting: paper architecture, batch 8, 1500 -> 1000 points.
+            const auto tf = quick ? g2l::train::bench_training(1, width, 2, 300, 200)
+                                  : g2l::train::bench_training(train_reps, width, 8, 1500, 1000);
+            figs.insert(figs.end(), tf.begin(), tf.end());
+        }
         if (json) {
             nlohmann::json j;
             j["threads"] = g2l::num_threads();

@@ -1,0 +1,56 @@
+// SPDX-License-Identifier: MIT
+// Pose-stage evaluation with ground-truth 2D boxes (the paper's Fig. 5a protocol): for every
+// annotated instance, crop the depth inside its box and sphere, run G2L-Net, score the pose.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "data/dataset.h"
+#include "nn/models/g2l_net.h"
+
+namespace g2l::train {
+
+struct EvalOptions {
+    std::string crop = "sphere";     ///< sphere | frustum | slab (as in training)
+    double radius_scale = 1.0;       ///< sphere radius = radius_scale x diameter
+    double min_visib_fract = 0.0;    ///< instances below are skipped (not counted)
+    int64_t max_instances = 0;       ///< 0 = all
+    int max_object_points = 2000;    ///< cap for the T / rotation nets
+    int max_model_points = 2000;     ///< model vertices used by ADD / ADD-S (stride subsample)
+};
+
+/// Per-object and overall figures. Misses (no pose) count as failures, with distance inf in
+/// the AUCs (spec §11.3).
+struct ObjectScores {
+    int obj_id = 0;
+    std::string name;
+    bool symmetric = false;
+    int count = 0, misses = 0;
+    double acc_add_s_10 = 0;   ///< % correct at 10% of the diameter: ADD-S if symmetric else ADD
+    double auc_adds = 0;       ///< ADD-S AUC up to 10 cm (YCB-Video toolbox)
+    double auc_add = 0;        ///< ADD AUC up to 10 cm
+    double mean_rot_err_deg = 0, mean_trans_err_mm = 0;  ///< over found poses
+};
+
+struct EvalReport {
+    std::vector<ObjectScores> objects;  ///< sorted by obj_id
+    ObjectScores average;               ///< objects' mean (acc, AUCs); "all" counts for others
+    double ms_crop = 0, ms_seg = 0, ms_t = 0, ms_rot = 0;  ///< mean per instance
+    int instances = 0;
+};
+
+/// class_of maps obj_id -> class index of the network (objects not in it are skipped);
+/// keypoints[class index] are the model keypoints the network was trained with.
+EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
+                             const std::map<int, int>& class_of,
+                             const std::vector<std::vector<Eigen::Vector3f>>& keypoints,
+                             const EvalOptions& opt);
+
+/// The report as a Markdown table (one row per object + the average + timings).
+std::string report_markdown(const EvalReport& r);
+/// The report as a JSON text.
+std::string report_json(const EvalReport& r);
+
+}  // namespace g2l::train

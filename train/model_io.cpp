@@ -1,0 +1,168 @@
+// SPDX-License-Identifier: MIT
+#include "train/model_io.h"
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "core/checkpoint.h"
+
+namespace g2l::train {
+
+using json = nlohmann::json;
+
+nn::G2LConfig model_config(const TrainConfig& cfg, int num_keypoints) {
+    nn::G2LConfig mc;
+    mc.num_classes = cfg.model.num_classes;
+    mc.num_keypoints = num_keypoints;
+    mc.evf = cfg.model.evf;
+    mc.rre = cfg.model.rre;
+    mc.width = cfg.model.width;
+    mc.dropout = cfg.model.dropout;
+    mc.seed = cfg.seed;
+    return mc;
+}
+
+namespace {
+
+json model_json(const nn::G2LConfig& c) {
+    return {{"num_classes", c.num_classes}, {"num_keypoints", c.num_keypoints}, {"evf", c.evf},
+            {"rre", c.rre}, {"width", c.width}, {"dropout", c.dropout}, {"seed", c.seed},
+            {"rre_dropout", c.rre_dropout}};
+}
+
+const json& key(const json& j, const char* k, const std::string& path) {
+    G2L_CHECK(j.is_object() && j.contains(k), "checkpoint '", path, "': metadata has no '", k,
+              "' (not a g2l training checkpoint?)");
+    return j.at(k);
+}
+
+}  // namespace
+
+void save_training_checkpoint(const std::string& path, const nn::G2LNet& net,
+                              const nn::Adam& adam, const TrainConfig& cfg,
+                              const std::map<int, int>& class_of, const KeypointTable& keypoints,
+                              const ResumeState& st) {
+    std::vector<std::pair<std::string, Tensor>> tensors;
+    for (const auto& [name, t] : net.state_dict()) tensors.emplace_back("model." + name, t);
+    for (auto& p : adam.state_tensors()) tensors.push_back(p);
+    json meta;
+    meta["format"] = "g2l-train";
+    meta["model"] = model_json(net.config());
+    json ids = json::array(), kps = json::array();
+    for (const auto& [id, cls] : class_of) ids.push_back({id, cls});
+    for (const auto& k : keypoints) {
+        json one = json::array();
+        for (const auto& p : k) one.push_back({p.x(), p.y(), p.z()});
+        kps.push_back(one);
+    }
+    meta["classes"] = ids;
+    meta["keypoints"] = kps;
+    meta["sampling"] = {{"crop", cfg.sampling.crop}, {"radius_scale", cfg.sampling.radius_scale}};
+    meta["resume"] = {{"epoch", st.epoch}, {"pos", st.pos}, {"global_step", st.global_step},
+                      {"epoch_batches", st.epoch_batches}, {"epoch_loss", st.epoch_loss},
+                      {"best_val", st.best_val}, {"adam_step", adam.step_count()}};
+    meta["config"] = json::parse(config_to_json(cfg));
+    save_checkpoint(path, tensors, meta.dump());
+}
+
+ResumeState load_training_checkpoint(const std::string& path, nn::G2LNet& net, nn::Adam& adam) {
+    const Checkpoint ck = load_checkpoint(path);
+    const json meta = json::parse(ck.meta_json);
+    G2L_CHECK(meta.value("format", "") == "g2l-train", "checkpoint '", path,
+              "' is not a g2l training checkpoint (format '", meta.value("format", ""), "')");
+    G2L_CHECK(key(meta, "model", path) == model_json(net.config()), "checkpoint '", path,
+              "' was trained with model ", meta.at("model").dump(), " but the config builds ",
+              model_json(net.config()).dump());
+    std::map<std::string, Tensor> model;
+    for (const auto& [name, t] : ck.tensors)
+        if (name.rfind("model.", 0) == 0) model.emplace(name.substr(6), t);
+    try {
+        net.load_state_dict(model);
+    } catch (const Error& e) {
+        G2L_CHECK(false, "checkpoint '", path, "': ", e.what());
+    }
+    const json& r = key(meta, "resume", path);
+    adam.load_state(ck.tensors, r.at("adam_step").get<int64_t>());
+    ResumeState st;
+    st.epoch = r.at("epoch").get<int>();
+    st.pos = r.at("pos").get<int64_t>();
+    st.global_step = r.at("global_step").get<int64_t>();
+    st.epoch_batches = r.at("epoch_batches").get<int64_t>();
+    st.epoch_loss = r.at("epoch_loss").get<double>();
+    st.best_val = r.at("best_val").get<double>();
+    return st;
+}
+
+LoadedModel load_model(const std::string& path) {
+    const Checkpoint ck = load_checkpoint(path);
+    json meta;
+    try {
+        meta = json::parse(ck.meta_json);
+    } catch (const std::exception& e) {
+        G2L_CHECK(false, "checkpoint '", path, "': metadata is not JSON: ", e.what());
+    }
+    G2L_CHECK(meta.value("format", "") == "g2l-train", "checkpoint '", path,
+              "' is not a g2l model checkpoint (format '", meta.value("format", ""), "')");
+    LoadedModel m;
+    try {
+        const json& mj = key(meta, "model", path);
+        nn::G2LConfig c;
+        c.num_classes = mj.at("num_classes");
+        c.num_keypoints = mj.at("num_keypoints");
+        c.evf = mj.at("evf");
+        c.rre = mj.at("rre");
+        c.width = mj.at("width");
+        c.dropout = mj.at("dropout");
+        c.seed = mj.at("seed");
+        c.rre_dropout = mj.at("rre_dropout");
+        m.net = std::make_unique<nn::G2LNet>(c);
+        for (const auto& p : key(meta, "classes", path)) m.class_of[p.at(0)] = p.at(1);
+        for (const auto& k : key(meta, "keypoints", path)) {
+            std::vector<Eigen::Vector3f> one;
+            for (const auto& p : k) one.emplace_back(p.at(0), p.at(1), p.at(2));
+            m.keypoints.push_back(one);
+        }
+        m.crop = key(meta, "sampling", path).at("crop");
+        m.radius_scale = meta.at("sampling").at("radius_scale");
+        m.config_json = meta.contains("config") ? meta.at("config").dump(2) : "{}";
+    } catch (const json::exception& e) {
+        G2L_CHECK(false, "checkpoint '", path, "': malformed metadata: ", e.what());
+    }
+    std::map<std::string, Tensor> model;
+    for (const auto& [name, t] : ck.tensors)
+        if (name.rfind("model.", 0) == 0) model.emplace(name.substr(6), t);
+    try {
+        m.net->load_state_dict(model);
+    } catch (const Error& e) {
+        G2L_CHECK(false, "checkpoint '", path, "': ", e.what());
+    }
+    m.net->eval();
+    return m;
+}
+
+void truncate_jsonl(const std::string& path, const std::string& k, int64_t max_value) {
+    std::ifstream in(path);
+    if (!in) return;
+    std::vector<std::string> keep;
+    std::string line;
+    while (std::getline(in, line)) {
+        if (line.empty()) continue;
+        try {
+            const json j = json::parse(line);
+            if (j.contains(k) && j.at(k).get<int64_t>() > max_value) continue;
+        } catch (const json::exception&) {
+            continue;  // a torn last line from a killed run
+        }
+        keep.push_back(line);
+    }
+    in.close();
+    const std::string tmp = path + ".tmp";
+    {
+        std::ofstream out(tmp, std::ios::trunc);
+        for (const auto& l : keep) out << l << "\n";
+    }
+    std::filesystem::rename(tmp, path);
+}
+
+}  // namespace g2l::train

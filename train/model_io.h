@@ -1,0 +1,58 @@
+// SPDX-License-Identifier: MIT
+// Training checkpoints (.g2l, see docs/checkpoint.md): the model's state dict ("model.*"), the
+// optimizer state ("adam.*") and JSON metadata that makes the file self-describing (network
+// hyper-parameters, object ids, keypoints, crop settings, the effective config, resume state).
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "nn/models/g2l_net.h"
+#include "nn/optim.h"
+#include "train/config.h"
+#include "train/pipeline.h"
+
+namespace g2l::train {
+
+/// Where a run stands: enough to continue it bit for bit.
+struct ResumeState {
+    int epoch = 0;              ///< current epoch (0-based)
+    int64_t pos = 0;            ///< position in the epoch's visiting order
+    int64_t global_step = 0;    ///< optimizer steps done
+    int64_t epoch_batches = 0;  ///< batches done in the current epoch
+    double epoch_loss = 0;      ///< sum of their losses
+    double best_val = -1;       ///< best validation ADD-S AUC so far
+};
+
+/// The network hyper-parameters of a config (K = number of keypoints per object).
+nn::G2LConfig model_config(const TrainConfig& cfg, int num_keypoints);
+
+/// Writes the checkpoint atomically (core/checkpoint.h).
+void save_training_checkpoint(const std::string& path, const nn::G2LNet& net,
+                              const nn::Adam& adam, const TrainConfig& cfg,
+                              const std::map<int, int>& class_of, const KeypointTable& keypoints,
+                              const ResumeState& state);
+
+/// Restores model + optimizer from a checkpoint written by save_training_checkpoint and
+/// returns the resume state. Throws g2l::Error naming the file when it is not a training
+/// checkpoint or does not match the network (listing the mismatched tensors).
+ResumeState load_training_checkpoint(const std::string& path, nn::G2LNet& net, nn::Adam& adam);
+
+/// A trained model ready for inference, rebuilt from the checkpoint alone.
+struct LoadedModel {
+    std::unique_ptr<nn::G2LNet> net;
+    std::map<int, int> class_of;   ///< obj_id -> class index
+    KeypointTable keypoints;       ///< class index -> model keypoints (mm)
+    std::string crop = "sphere";   ///< crop the network was trained with
+    double radius_scale = 1.0;
+    std::string config_json;       ///< the training config (effective)
+};
+LoadedModel load_model(const std::string& path);
+
+/// Keeps only the lines of a JSONL log whose numeric `key` is <= max_value (after a resume the
+/// log continues from the checkpoint). A missing file is fine.
+void truncate_jsonl(const std::string& path, const std::string& key, int64_t max_value);
+
+}  // namespace g2l::train

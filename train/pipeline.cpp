@@ -1,0 +1,194 @@
+// SPDX-License-Identifier: MIT
+#include "train/pipeline.h"
+
+#include <Eigen/Dense>
+#include <cmath>
+
+#include "core/autograd.h"
+#include "geometry/kabsch.h"
+#include "nn/ops/elementwise.h"
+#include "nn/ops/loss.h"
+
+namespace g2l::train {
+
+namespace {
+
+Tensor one_hot(const std::vector<PoseSample>& s, int num_classes) {
+    Tensor oh = Tensor::zeros({int64_t(s.size()), num_classes});
+    for (size_t b = 0; b < s.size(); ++b) {
+        G2L_CHECK(s[b].class_index >= 0 && s[b].class_index < num_classes, "g2l_step: sample ",
+                  b, " has class index ", s[b].class_index, " outside [0, ", num_classes, ")");
+        oh.data<float>()[b * size_t(num_classes) + size_t(s[b].class_index)] = 1.f;
+    }
+    return oh;
+}
+
+}  // namespace
+
+StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
+                    const KeypointTable& keypoints, int num_classes, int seg_points,
+                    const LossWeights& w, Rng& rng) {
+    const int64_t B = int64_t(samples.size());
+    G2L_CHECK(B > 0, "g2l_step: empty batch");
+    G2L_CHECK(seg_points > 0, "g2l_step: seg_points must be > 0, got ", seg_points);
+    const int64_t N = int64_t(samples[0].labels.size());
+    const int64_t M = seg_points;
+    for (int64_t b = 0; b < B; ++b)
+        G2L_CHECK(int64_t(samples[b].labels.size()) == N &&
+                      int64_t(samples[b].points.size()) == 3 * N,
+                  "g2l_step: sample ", b, " has ", samples[b].labels.size(),
+                  " points, sample 0 has ", N);
+    const int K = net.config().num_keypoints;
+    const Tensor onehot = one_hot(samples, num_classes);
+
+    // ---- 1. segmentation on the augmented crop: x [B, 3, N] ----
+    Tensor x = Tensor::empty({B, 3, N});
+    Tensor labels = Tensor::empty({B, N}, DType::I32);
+    for (int64_t b = 0; b < B; ++b) {
+        float* px = x.data<float>() + b * 3 * N;
+        for (int64_t n = 0; n < N; ++n)
+            for (int c = 0; c < 3; ++c) px[c * N + n] = samples[b].points[size_t(n * 3 + c)];
+        std::copy(samples[b].labels.begin(), samples[b].labels.end(),
+                  labels.data<int32_t>() + b * N);
+    }
+    StepLosses out;
+    const Tensor logp = net.seg_forward(x, onehot);  // [B, 2, N]
+    const Tensor l_seg = nn::nll_loss(logp, labels);
+
+    // ---- 2. points predicted as object, resampled to M (no gradient through the choice) ----
+    Tensor xt = Tensor::empty({B, 3, M});      // T-net input: object points minus their mean
+    Tensor xr = Tensor::empty({B, 3, M});      // rotation input: points minus GT translation
+    Tensor t_target = Tensor::empty({B, 3});
+    Tensor vec_target = Tensor::zeros({B, 3 * int64_t(K), M});
+    Tensor kp_target = Tensor::empty({B, K, 3});
+    std::vector<Eigen::Vector3f> sel_mean(static_cast<size_t>(B));
+    int64_t correct = 0;
+    for (int64_t b = 0; b < B; ++b) {
+        const PoseSample& s = samples[size_t(b)];
+        const float* lp = logp.data<float>() + b * 2 * N;
+        std::vector<int32_t> idx;
+        for (int64_t n = 0; n < N; ++n) {
+            const int pred = lp[N + n] > lp[n] ? 1 : 0;
+            correct += pred == s.labels[size_t(n)];
+            if (pred) idx.push_back(int32_t(n));
+        }
+        if (idx.size() < 10) {
+            idx.clear();
+            for (int64_t n = 0; n < N; ++n)
+                if (s.labels[size_t(n)]) idx.push_back(int32_t(n));
+        }
+        if (idx.empty())
+            for (int64_t n = 0; n < N; ++n) idx.push_back(int32_t(n));
+        std::vector<int32_t> pick(static_cast<size_t>(M));
+        for (auto& p : pick) p = idx[rng.below(idx.size())];
+        Eigen::Vector3f mean = Eigen::Vector3f::Zero();
+        for (int32_t p : pick)
+            mean += Eigen::Vector3f(s.points[size_t(p) * 3], s.points[size_t(p) * 3 + 1],
+                                    s.points[size_t(p) * 3 + 2]);
+        mean /= float(M);
+        sel_mean[size_t(b)] = mean;
+        G2L_CHECK(s.class_index < int(keypoints.size()) &&
+                      int(keypoints[size_t(s.class_index)].size()) == K,
+                  "g2l_step: no ", K, " keypoints for class index ", s.class_index);
+        const auto& kpm = keypoints[size_t(s.class_index)];
+        std::vector<Eigen::Vector3f> kpc(static_cast<size_t>(K));  // GT keypoints in the canonical frame
+        for (int k = 0; k < K; ++k) {
+            kpc[size_t(k)] = s.R * kpm[size_t(k)];
+            for (int c = 0; c < 3; ++c) kp_target.data<float>()[(b * K + k) * 3 + c] = kpc[size_t(k)][c];
+        }
+        for (int c = 0; c < 3; ++c) t_target.data<float>()[b * 3 + c] = s.t[c] - mean[c];
+        float* pt = xt.data<float>() + b * 3 * M;
+        float* pr = xr.data<float>() + b * 3 * M;
+        float* pv = vec_target.data<float>() + b * 3 * K * M;
+        for (int64_t m = 0; m < M; ++m) {
+            const size_t p = size_t(pick[size_t(m)]);
+            const Eigen::Vector3f q(s.points[p * 3], s.points[p * 3 + 1], s.points[p * 3 + 2]);
+            const Eigen::Vector3f c = q - s.t;
+            for (int a = 0; a < 3; ++a) {
+                pt[a * M + m] = q[a] - mean[a];
+                pr[a * M + m] = c[a];
+            }
+            if (!s.labels[p]) continue;  // background points keep zero vector targets (spec §5)
+            for (int k = 0; k < K; ++k) {
+                Eigen::Vector3f v = kpc[size_t(k)] - c;
+                const float len = v.norm();
+                if (len > 1e-6f) v /= len;
+                for (int a = 0; a < 3; ++a) pv[(k * 3 + a) * M + m] = v[a];
+            }
+        }
+    }
+    out.seg_accuracy = double(correct) / double(B * N);
+
+    // ---- 3. translation residual ----
+    const Tensor t_pred = net.t_forward(xt, onehot);  // [B, 3]
+    const Tensor l_t = w.t_smooth_l1 ? nn::smooth_l1_loss(t_pred, t_target, 1.0)
+                                     : nn::mse_loss(t_pred, t_target);
+    {
+        double e = 0;
+        for (int64_t b = 0; b < B; ++b) {
+            double d2 = 0;
+            for (int c = 0; c < 3; ++c) {
+                const double d = t_pred.data<float>()[b * 3 + c] - t_target.data<float>()[b * 3 + c];
+                d2 += d * d;
+            }
+            e += std::sqrt(d2);
+        }
+        out.t_error_mm = e / double(B);
+    }
+
+    // ---- 4. rotation blocks in the canonical frame ----
+    const nn::RotOut rot = net.rot_forward(xr, onehot);
+    Tensor total = nn::mul_scalar(l_seg, w.seg) + nn::mul_scalar(l_t, w.t);
+    out.seg = l_seg.item<double>();
+    out.t = l_t.item<double>();
+    if (rot.vectors.defined()) {
+        const Tensor l_vec = nn::mse_loss(rot.vectors, vec_target);
+        out.vec = l_vec.item<double>();
+        total = total + nn::mul_scalar(l_vec, w.vec);
+    }
+    const Tensor l_kp = nn::mse_loss(rot.keypoints, kp_target);
+    out.kp = l_kp.item<double>();
+    total = total + nn::mul_scalar(l_kp, w.kp);
+    Tensor final_kp = rot.keypoints;
+    if (rot.residual.defined()) {
+        // Block C's target online: R_hat = Kabsch(model keypoints -> predicted keypoints,
+        // detached), corrected keypoints = R_hat * model keypoints + residual -> GT keypoints.
+        Tensor model_kp = Tensor::empty({B, K, 3});
+        for (int64_t b = 0; b < B; ++b)
+            for (int k = 0; k < K; ++k)
+                for (int c = 0; c < 3; ++c)
+                    model_kp.data<float>()[(b * K + k) * 3 + c] =
+                        keypoints[size_t(samples[size_t(b)].class_index)][size_t(k)][c];
+        Tensor Rhat = Tensor::empty({B, 3, 3});
+        geom::kabsch_batched(model_kp.data<float>(), rot.keypoints.data<float>(), int(B), K,
+                             Rhat.data<float>());
+        Tensor base = Tensor::empty({B, K, 3});
+        for (int64_t b = 0; b < B; ++b) {
+            const Eigen::Map<const Eigen::Matrix<float, 3, 3, Eigen::RowMajor>> R(
+                Rhat.data<float>() + b * 9);
+            for (int k = 0; k < K; ++k) {
+                const Eigen::Map<const Eigen::Vector3f> p(model_kp.data<float>() + (b * K + k) * 3);
+                Eigen::Map<Eigen::Vector3f>(base.data<float>() + (b * K + k) * 3) = R * p;
+            }
+        }
+        final_kp = base + rot.residual;
+        const Tensor l_res = nn::mse_loss(final_kp, kp_target);
+        out.res = l_res.item<double>();
+        total = total + nn::mul_scalar(l_res, w.res);
+    }
+    {
+        double e = 0;
+        const float* a = final_kp.data<float>();
+        const float* g = kp_target.data<float>();
+        for (int64_t i = 0; i < B * K; ++i) {
+            double d2 = 0;
+            for (int c = 0; c < 3; ++c) d2 += double(a[i * 3 + c] - g[i * 3 + c]) * (a[i * 3 + c] - g[i * 3 + c]);
+            e += std::sqrt(d2);
+        }
+        out.kp_error_mm = e / double(B * K);
+    }
+    out.total = total;
+    return out;
+}
+
+}  // namespace g2l::train

@@ -1,0 +1,391 @@
+// SPDX-License-Identifier: MIT
+#include "train/trainer.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "core/autograd.h"
+#include "core/checkpoint.h"
+#include "core/threads.h"
+#include "data/bop.h"
+#include "geometry/keypoints.h"
+#include "nn/models/g2l_net.h"
+#include "nn/optim.h"
+#include "nn/schedule.h"
+#include "train/evaluate.h"
+#include "train/model_io.h"
+#include "train/pipeline.h"
+#include "train/sources.h"
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace g2l::train {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+uint64_t mix(uint64_t a, uint64_t b) {
+    uint64_t z = a * 0x9E3779B97F4A7C15ull + b + 0x632BE59BD9B4E019ull;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+// Everything the run reads: datasets, meshes, the sample maker, keypoints.
+struct RunData {
+    std::vector<std::unique_ptr<data::BopDataset>> datasets;  // owns meshes of BOP sources
+    std::map<int, train::SampleModel> models;                 // obj_id -> mesh + info
+    std::map<int, int> class_of;                              // obj_id -> class index
+    KeypointTable keypoints;                                  // class index -> K keypoints
+    std::unique_ptr<SampleMaker> maker;
+    struct Src {
+        const SourceConfig* cfg;
+        data::BopDataset* bop = nullptr;  // type bop
+        std::vector<data::SceneModel> scene_models;  // type synthetic
+        data::SceneConfig scene;
+    };
+    std::vector<Src> train, val;
+};
+
+data::BopDataset* open_source_dataset(RunData& rd, const TrainConfig& cfg, const SourceConfig& s,
+                                     bool models_only) {
+    data::BopOptions o;
+    o.scenes = s.scenes;
+    o.obj_ids = s.objects.empty() ? cfg.data.object_ids : s.objects;
+    o.models_eval = s.models_eval;
+    const std::string root = s.type == "bop" ? s.root : s.models_root;
+    const std::string split = models_only ? "" : s.split;
+    rd.datasets.push_back(std::make_unique<data::BopDataset>(
+        models_only ? data::BopDataset(data::open_bop_models(root, o), "", {})
+                    : data::open_bop(root, split, o)));
+    return rd.datasets.back().get();
+}
+
+void add_models(RunData& rd, const data::Dataset& ds) {
+    for (const auto& [id, om] : ds.models()) {
+        if (!rd.class_of.count(id) || rd.models.count(id)) continue;
+        rd.models[id] = SampleModel{&ds.load_model_mesh(id), om.info};
+    }
+}
+
+RunData prepare_data(const TrainConfig& cfg) {
+    RunData rd;
+    for (size_t i = 0; i < cfg.data.object_ids.size(); ++i)
+        rd.class_of[cfg.data.object_ids[i]] = int(i);
+    auto add = [&](const SourceConfig& s, std::vector<RunData::Src>& list) {
+        RunData::Src src;
+        src.cfg = &s;
+        if (s.type == "bop") {
+            src.bop = open_source_dataset(rd, cfg, s, false);
+            add_models(rd, *src.bop);
+        } else {
+            data::BopDataset* ds = open_source_dataset(rd, cfg, s, true);
+            add_models(rd, *ds);
+            src.scene = source_scene(s, "data.train/val synthetic source");
+            for (const auto& [id, om] : ds->models())
+                src.scene_models.push_back({id, &ds->load_model_mesh(id)});
+        }
+        list.push_back(std::move(src));
+    };
+    for (const auto& s : cfg.data.train) add(s, rd.train);
+    for (const auto& s : cfg.data.val) add(s, rd.val);
+    for (const auto& [id, cls] : rd.class_of)
+        G2L_CHECK(rd.models.count(id), "data.object_ids: object ", id,
+                  " has no model in any configured source");
+    rd.keypoints.resize(rd.class_of.size());
+    for (const auto& [id, cls] : rd.class_of) {
+        const geom::Points kp = geom::keypoints(*rd.models[id].mesh, rd.models[id].info,
+                                                cfg.model.keypoints);
+        for (int64_t k = 0; k < kp.rows(); ++k) rd.keypoints[size_t(cls)].push_back(kp.row(k).transpose());
+    }
+    SampleConfig sc;
+    sc.crop = cfg.sampling.crop;
+    sc.points = cfg.sampling.points;
+    sc.radius_scale = cfg.sampling.radius_scale;
+    sc.center_jitter_mm = cfg.sampling.center_jitter_mm;
+    sc.box_jitter_frac = cfg.sampling.box_jitter_frac;
+    sc.label_threshold_mm = cfg.sampling.label_threshold_mm;
+    sc.min_points = cfg.sampling.min_points;
+    sc.shift_mm = cfg.augment.shift_mm;
+    sc.rot_deg = cfg.augment.rot_deg;
+    sc.point_noise_mm = cfg.augment.point_noise_mm;
+    sc.augment = cfg.augment.enabled;
+    rd.maker = std::make_unique<SampleMaker>(sc, rd.models, rd.class_of,
+                                             cfg.sampling.surface_spacing_mm);
+    return rd;
+}
+
+// One epoch's visiting order: (source, index) blocks. BOP instances are shuffled one by one;
+// the instances of one synthetic frame stay together (the frame renders once).
+struct Item {
+    int source;
+    int64_t index;
+};
+
+struct Sources {
+    std::vector<std::unique_ptr<SampleSource>> list;
+};
+
+Sources make_train_sources(const RunData& rd, const TrainConfig& cfg, int epoch) {
+    Sources s;
+    for (const auto& src : rd.train) {
+        if (src.bop) {
+            s.list.push_back(std::make_unique<BopSource>(*src.bop, *rd.maker,
+                                                         src.cfg->min_visib_fract,
+                                                         src.cfg->max_frames));
+        } else {
+            data::SceneConfig scene = src.scene;
+            scene.seed = mix(mix(cfg.seed, uint64_t(epoch)), scene.seed);  // fresh renders
+            s.list.push_back(std::make_unique<SyntheticSource>(scene, src.scene_models, *rd.maker,
+                                                               src.cfg->frames));
+        }
+    }
+    return s;
+}
+
+std::vector<Item> epoch_order(const Sources& s, const RunData& rd, const TrainConfig& cfg, int epoch) {
+    std::vector<std::vector<Item>> blocks;
+    for (size_t i = 0; i < s.list.size(); ++i) {
+        const int64_t n = s.list[i]->size();
+        const int64_t per = rd.train[i].bop ? 1 : std::max(1, rd.train[i].scene.targets_max);
+        for (int64_t b = 0; b < n; b += per) {
+            std::vector<Item> blk;
+            for (int64_t k = b; k < std::min(n, b + per); ++k) blk.push_back({int(i), k});
+            blocks.push_back(std::move(blk));
+        }
+    }
+    Rng rng(mix(cfg.seed, 1000003ull + uint64_t(epoch)));
+    for (size_t i = blocks.size(); i > 1; --i) std::swap(blocks[i - 1], blocks[rng.below(i)]);
+    std::vector<Item> order;
+    for (auto& b : blocks) order.insert(order.end(), b.begin(), b.end());
+    if (cfg.train.samples_per_epoch > 0 && !order.empty()) {
+        std::vector<Item> cut;
+        for (int64_t i = 0; int64_t(cut.size()) < cfg.train.samples_per_epoch * 2 &&
+                            i < int64_t(order.size()) * 4; ++i)
+            cut.push_back(order[size_t(i) % order.size()]);
+        order.swap(cut);  // twice the target: unusable crops are skipped (see run loop)
+    }
+    return order;
+}
+
+std::string fmt_time(double s) {
+    char b[32];
+    const int t = int(s + 0.5);
+    std::snprintf(b, sizeof b, "%d:%02d:%02d", t / 3600, (t / 60) % 60, t % 60);
+    return b;
+}
+
+}  // namespace
+
+TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
+    if (cfg.threads > 0) set_num_threads(cfg.threads);
+    G2L_CHECK(parse_device(cfg.device).is_cpu(), "device '", cfg.device,
+              "': training runs on the CPU in this version (the CUDA backend is not complete)");
+    RunData rd = prepare_data(cfg);
+    G2L_CHECK(!rd.train.empty(), "data.train: no training source configured");
+
+    nn::G2LConfig mc = model_config(cfg, rd.keypoints.empty() ? 8 : int(rd.keypoints[0].size()));
+    nn::G2LNet net(mc);
+    nn::G2LLrMults mults{cfg.optim.lr_mult.seg, cfg.optim.lr_mult.tnet, cfg.optim.lr_mult.evf,
+                         cfg.optim.lr_mult.rot, cfg.optim.lr_mult.rre};
+    nn::AdamOptions ao;
+    ao.lr = cfg.optim.lr;
+    ao.beta1 = cfg.optim.beta1;
+    ao.beta2 = cfg.optim.beta2;
+    ao.eps = cfg.optim.eps;
+    nn::Adam adam(net.param_groups(mults, cfg.optim.weight_decay), ao);
+    const auto schedule = nn::make_schedule(cfg.schedule.kind, cfg.optim.lr,
+                                            cfg.schedule.step_epochs, cfg.schedule.gamma,
+                                            cfg.train.epochs);
+    LossWeights lw;
+    lw.seg = cfg.loss.seg; lw.t = cfg.loss.t; lw.vec = cfg.loss.vec; lw.kp = cfg.loss.kp;
+    lw.res = cfg.loss.res; lw.t_smooth_l1 = cfg.loss.t_loss == "smooth_l1";
+
+    // ---- run directory and resume state ----
+    const std::string run_dir = opt.resume_dir.empty() ? cfg.run_dir : opt.resume_dir;
+    fs::create_directories(run_dir);
+    int epoch = 0;
+    int64_t pos = 0, global_step = 0, epoch_batches = 0;
+    double epoch_loss = 0, best_val = -1;
+    if (!opt.resume_dir.empty()) {
+        const std::string path = (fs::path(run_dir) / "last.g2l").string();
+        const ResumeState st = load_training_checkpoint(path, net, adam);
+        epoch = st.epoch; pos = st.pos; global_step = st.global_step;
+        epoch_batches = st.epoch_batches; epoch_loss = st.epoch_loss; best_val = st.best_val;
+        truncate_jsonl(fs::path(run_dir) / "steps.jsonl", "step", global_step);
+        truncate_jsonl(fs::path(run_dir) / "epochs.jsonl", "epoch", epoch - 1);
+    } else {
+        std::ofstream(fs::path(run_dir) / "config.json") << config_to_json(cfg) << "\n";
+        std::ofstream(fs::path(run_dir) / "steps.jsonl", std::ios::trunc);
+        std::ofstream(fs::path(run_dir) / "epochs.jsonl", std::ios::trunc);
+    }
+    std::ofstream steps_log(fs::path(run_dir) / "steps.jsonl", std::ios::app);
+    std::ofstream epochs_log(fs::path(run_dir) / "epochs.jsonl", std::ios::app);
+    const bool tty = opt.progress && isatty(fileno(stdout));
+
+    TrainSummary sum;
+    sum.run_dir = run_dir;
+    const auto t_start = Clock::now();
+    int64_t samples_done = 0;
+    auto save = [&](const std::string& name) {
+        ResumeState st{epoch, pos, global_step, epoch_batches, epoch_loss, best_val};
+        save_training_checkpoint((fs::path(run_dir) / name).string(), net, adam, cfg, rd.class_of,
+                                 rd.keypoints, st);
+    };
+    bool stop = false;
+    while (epoch < cfg.train.epochs && !stop) {
+        adam.set_lr(schedule->lr_at(epoch));
+        Sources sources = make_train_sources(rd, cfg, epoch);
+        const std::vector<Item> order = epoch_order(sources, rd, cfg, epoch);
+        const int64_t target = cfg.train.samples_per_epoch > 0 ? cfg.train.samples_per_epoch
+                                                               : int64_t(order.size());
+        const int64_t batches_per_epoch = std::max<int64_t>(1, target / cfg.train.batch);
+        net.train();
+        const auto t_epoch = Clock::now();
+        int64_t tried = 0, failed = 0;
+        while (epoch_batches < batches_per_epoch && pos < int64_t(order.size())) {
+            std::vector<PoseSample> batch;
+            while (int(batch.size()) < cfg.train.batch && pos < int64_t(order.size())) {
+                const Item it = order[size_t(pos++)];
+                Rng srng(mix(mix(cfg.seed, uint64_t(epoch) * 7919 + uint64_t(it.source)),
+                             uint64_t(it.index)));
+                PoseSample s;
+                ++tried;
+                if (sources.list[size_t(it.source)]->get(it.index, srng, &s)) batch.push_back(std::move(s));
+                else ++failed;
+            }
+            if (int(batch.size()) < cfg.train.batch) break;  // epoch exhausted
+            G2L_CHECK(tried < 50 || failed * 10 < tried * 9, "training data: ", failed, " of ",
+                      tried, " crops were unusable (too few points) — check the sources, "
+                      "sampling.min_points and the depth data");
+            Rng step_rng(mix(cfg.seed, 0xABCDEFull + uint64_t(global_step)));
+            const auto t0 = Clock::now();
+            adam.zero_grad();
+            StepLosses L = g2l_step(net, batch, rd.keypoints, mc.num_classes,
+                                    cfg.sampling.seg_points, lw, step_rng);
+            const double loss = L.total.item<double>();
+            if (!std::isfinite(loss)) {
+                std::string objs;
+                for (const auto& s : batch) objs += " " + std::to_string(s.obj_id);
+                G2L_CHECK(false, "non-finite loss ", loss, " at step ", global_step, " (epoch ",
+                          epoch, "; objects", objs, "; seg ", L.seg, " t ", L.t, " vec ", L.vec,
+                          " kp ", L.kp, " res ", L.res, ")");
+            }
+            L.total.backward();
+            adam.step();
+            const double dt = std::chrono::duration<double>(Clock::now() - t0).count();
+            ++global_step;
+            ++epoch_batches;
+            epoch_loss += loss;
+            samples_done += int64_t(batch.size());
+            sum.last_loss = epoch_loss / double(epoch_batches);
+            if (global_step % std::max(1, cfg.train.log_every) == 0 || epoch_batches == 1) {
+                json j = {{"step", global_step}, {"epoch", epoch}, {"lr", adam.lr()},
+                          {"loss", loss}, {"seg", L.seg}, {"t", L.t}, {"vec", L.vec},
+                          {"kp", L.kp}, {"res", L.res}, {"seg_acc", L.seg_accuracy},
+                          {"t_err_mm", L.t_error_mm}, {"kp_err_mm", L.kp_error_mm},
+                          {"step_s", dt}};
+                steps_log << j.dump() << "\n";
+                steps_log.flush();
+            }
+            const double elapsed = std::chrono::duration<double>(Clock::now() - t_start).count();
+            const double sps = samples_done / std::max(1e-9, elapsed);
+            const double remaining_batches = double(batches_per_epoch - epoch_batches) +
+                                             double(cfg.train.epochs - epoch - 1) * batches_per_epoch;
+            const double eta = remaining_batches * cfg.train.batch / std::max(1e-9, sps);
+            if (tty) {
+                const int width = 24;
+                const int fill = int(width * epoch_batches / batches_per_epoch);
+                std::printf("\repoch %d/%d [%s%s] %lld/%lld loss %.4f (seg %.3f t %.1f kp %.1f) "
+                            "%.2f samples/s ETA %s   ",
+                            epoch + 1, cfg.train.epochs, std::string(size_t(fill), '#').c_str(),
+                            std::string(size_t(width - fill), '.').c_str(),
+                            (long long)epoch_batches, (long long)batches_per_epoch, loss, L.seg,
+                            L.t, L.kp, sps, fmt_time(eta).c_str());
+                std::fflush(stdout);
+            } else if (opt.progress && (global_step % std::max(1, cfg.train.log_every) == 0)) {
+                std::printf("epoch %d/%d step %lld (%lld/%lld) loss %.4f seg %.4f t %.2f vec %.4f "
+                            "kp %.2f res %.2f | %.2f samples/s ETA %s\n",
+                            epoch + 1, cfg.train.epochs, (long long)global_step,
+                            (long long)epoch_batches, (long long)batches_per_epoch, loss, L.seg,
+                            L.t, L.vec, L.kp, L.res, sps, fmt_time(eta).c_str());
+                std::fflush(stdout);
+            }
+            if (opt.max_steps > 0 && global_step >= opt.max_steps) stop = true;
+            if (cfg.train.time_limit_min > 0 && elapsed > cfg.train.time_limit_min * 60) stop = true;
+            if (stop) break;
+        }
+        if (tty) std::printf("\n");
+        if (stop && epoch_batches < batches_per_epoch) {
+            save("last.g2l");
+            sum.stopped_early = true;
+            break;
+        }
+        // ---- end of epoch: validation, logs, checkpoints ----
+        json ej = {{"epoch", epoch}, {"loss", epoch_batches ? epoch_loss / epoch_batches : 0.0},
+                   {"batches", epoch_batches}, {"lr", adam.lr()},
+                   {"seconds", std::chrono::duration<double>(Clock::now() - t_epoch).count()}};
+        const bool do_val = !rd.val.empty() && cfg.train.val_every > 0 &&
+                            ((epoch + 1) % cfg.train.val_every == 0 || epoch + 1 == cfg.train.epochs);
+        double val_auc = -1;
+        if (do_val) {
+            double s = 0;
+            int n = 0;
+            for (const auto& v : rd.val) {
+                if (!v.bop) continue;
+                EvalOptions eo;
+                eo.crop = cfg.sampling.crop;
+                eo.radius_scale = cfg.sampling.radius_scale;
+                eo.max_instances = cfg.train.max_val_samples;
+                eo.min_visib_fract = v.cfg->min_visib_fract;
+                const EvalReport r = evaluate_gt_boxes(net, *v.bop, rd.class_of, rd.keypoints, eo);
+                ej["val"].push_back(json::parse(report_json(r)));
+                s += r.average.auc_adds;
+                ++n;
+            }
+            if (n) {
+                val_auc = s / n;
+                ej["val_auc_adds"] = val_auc;
+            }
+        }
+        epochs_log << ej.dump() << "\n";
+        epochs_log.flush();
+        std::printf("epoch %d/%d done: loss %.4f%s\n", epoch + 1, cfg.train.epochs,
+                    epoch_batches ? epoch_loss / epoch_batches : 0.0,
+                    val_auc >= 0 ? (" val ADD-S AUC " + std::to_string(val_auc)).c_str() : "");
+        std::fflush(stdout);
+        ++epoch;
+        pos = 0;
+        epoch_batches = 0;
+        epoch_loss = 0;
+        sum.epochs_done = epoch;
+        if (val_auc > best_val) {
+            best_val = val_auc;
+            save("best.g2l");
+        }
+        if (cfg.train.checkpoint_every > 0 && epoch % cfg.train.checkpoint_every == 0)
+            save("epoch_" + std::to_string(epoch) + ".g2l");
+        save("last.g2l");
+        if (stop) {
+            sum.stopped_early = epoch < cfg.train.epochs;
+            break;
+        }
+    }
+    const double elapsed = std::chrono::duration<double>(Clock::now() - t_start).count();
+    sum.steps = global_step;
+    sum.epochs_done = epoch;
+    sum.best_val = best_val;
+    sum.samples_per_s = samples_done / std::max(1e-9, elapsed);
+    return sum;
+}
+
+}  // namespace g2l::train

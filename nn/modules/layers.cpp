@@ -2,8 +2,10 @@
 #include "nn/modules/layers.h"
 
 #include "core/autograd.h"
+#include "nn/ops/conv2d.h"
 #include "nn/ops/linear.h"
 #include "nn/ops/norm.h"
+#include "nn/ops/pool_points.h"
 
 namespace g2l::nn {
 
@@ -22,6 +24,26 @@ Conv1x1::Conv1x1(int64_t in, int64_t out, Rng& rng, bool use_bias, DType dtype) 
 }
 
 Tensor Conv1x1::forward(const Tensor& x) const { return conv1x1(x, weight, bias); }
+
+Conv2d::Conv2d(int64_t in, int64_t out, std::array<int64_t, 2> kernel, Rng& rng,
+               std::array<int64_t, 2> stride_, std::array<int64_t, 2> padding_,
+               std::array<int64_t, 2> dilation_, int64_t groups_, bool use_bias, DType dtype)
+    : stride(stride_), padding(padding_), dilation(dilation_), groups(groups_) {
+    G2L_CHECK(in > 0 && out > 0 && kernel[0] > 0 && kernel[1] > 0 && groups > 0 &&
+                  in % groups == 0 && out % groups == 0,
+              "Conv2d: bad sizes in ", in, " out ", out, " kernel ", kernel[0], "x", kernel[1],
+              " groups ", groups);
+    const int64_t fan_in = in / groups * kernel[0] * kernel[1];
+    weight = register_parameter(
+        "weight", uniform_init({out, in / groups, kernel[0], kernel[1]}, fan_in, rng, dtype));
+    if (use_bias) bias = register_parameter("bias", uniform_init({out}, fan_in, rng, dtype));
+}
+
+Tensor Conv2d::forward(const Tensor& x) const {
+    return conv2d(x, weight, bias, stride, padding, dilation, groups);
+}
+
+Tensor MaxPoolPoints::forward(const Tensor& x) const { return max_pool_points(x); }
 
 BatchNorm::BatchNorm(int64_t channels, double eps_, double momentum_, DType dtype)
     : eps(eps_), momentum(momentum_) {

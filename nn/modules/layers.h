@@ -3,6 +3,8 @@
 // state dicts read naturally and map onto imported weights.
 #pragma once
 
+#include <array>
+
 #include "nn/module.h"
 
 namespace g2l::nn {
@@ -21,6 +23,25 @@ public:
     Conv1x1(int64_t in, int64_t out, Rng& rng, bool bias = true, DType dtype = DType::F32);
     Tensor forward(const Tensor& x) const;
     Tensor weight, bias;  ///< [out, in], [out]
+};
+
+/// 2D convolution (NCHW): x [B, in, H, W] -> [B, out, Ho, Wo] (nn/ops/conv2d.h).
+class Conv2d : public Module {
+public:
+    Conv2d(int64_t in, int64_t out, std::array<int64_t, 2> kernel, Rng& rng,
+           std::array<int64_t, 2> stride = {1, 1}, std::array<int64_t, 2> padding = {0, 0},
+           std::array<int64_t, 2> dilation = {1, 1}, int64_t groups = 1, bool bias = true,
+           DType dtype = DType::F32);
+    Tensor forward(const Tensor& x) const;
+    Tensor weight, bias;  ///< [out, in / groups, kh, kw], [out]
+    std::array<int64_t, 2> stride, padding, dilation;
+    int64_t groups;
+};
+
+/// Max over the points of [B, C, N] features -> [B, C] (the PointNet global feature).
+class MaxPoolPoints : public Module {
+public:
+    Tensor forward(const Tensor& x) const;
 };
 
 /// BatchNorm over channel dim 1 for [B, C], [B, C, N] (BatchNorm1d) and [B, C, H, W]

@@ -122,6 +122,13 @@ int64_t Tensor::size(int64_t d) const {
 
 int64_t Tensor::numel() const { return shape_numel(shape()); }
 
+Shape Tensor::strides() const {
+    const Shape& s = shape();
+    Shape st(s.size(), 1);
+    for (size_t i = s.size(); i-- > 1;) st[i - 1] = st[i] * s[i];
+    return st;
+}
+
 DType Tensor::dtype() const {
     check_defined("dtype");
     return impl_->dtype;

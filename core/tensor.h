@@ -63,6 +63,9 @@ public:
     DType dtype() const;
     Device device() const;
     size_t nbytes() const { return size_t(numel()) * dtype_size(dtype()); }
+    /// Element strides per dimension. Tensors are always dense row-major, so these are the
+    /// row-major strides of shape() (kept for kernels and future strided views).
+    Shape strides() const;
     /// "f32[2, 3] cpu" for messages.
     std::string desc() const;
 

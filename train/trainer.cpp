@@ -301,7 +301,9 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
             const double sps = samples_done / std::max(1e-9, elapsed);
             const double remaining_batches = double(batches_per_epoch - epoch_batches) +
                                              double(cfg.train.epochs - epoch - 1) * batches_per_epoch;
-            const double eta = remaining_batches * cfg.train.batch / std::max(1e-9, sps);
+            double eta = remaining_batches * cfg.train.batch / std::max(1e-9, sps);
+            if (cfg.train.time_limit_min > 0)  // the run stops at the time limit
+                eta = std::min(eta, std::max(0.0, cfg.train.time_limit_min * 60 - elapsed));
             if (tty) {
                 const int width = 24;
                 const int fill = int(width * epoch_batches / batches_per_epoch);

@@ -13,6 +13,8 @@ TEST_CASE("tensor: factories, shape queries and 64-byte aligned storage", "[core
     REQUIRE(z.dim() == 3);
     REQUIRE(z.numel() == 24);
     REQUIRE(z.size(-1) == 4);
+    REQUIRE(z.strides() == Shape{12, 4, 1});
+    REQUIRE(Tensor::scalar(1).strides().empty());
     REQUIRE(z.dtype() == DType::F32);
     REQUIRE(z.device() == Device::cpu());
     REQUIRE(reinterpret_cast<uintptr_t>(z.data()) % 64 == 0);

@@ -11,36 +11,15 @@
 #include "geom_test_util.h"
 #include "geometry/labels.h"
 #include "geometry/mesh_io.h"
+#include "mesh_distance.h"
 #include "testing.h"
 
 using namespace g2l::geom;
 using Catch::Contains;
 
-namespace {
+using g2l::testing::point_triangle_distance;
 
-/// Distance from q to triangle abc (exact: Ericson, Real-Time Collision Detection 5.1.5).
-double point_triangle_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
-                               const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
-    const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
-    const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-    if (d1 <= 0 && d2 <= 0) return (p - a).norm();
-    const Eigen::Vector3d bp = p - b;
-    const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-    if (d3 >= 0 && d4 <= d3) return (p - b).norm();
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0 && d1 >= 0 && d3 <= 0) return (p - (a + ab * (d1 / (d1 - d3)))).norm();
-    const Eigen::Vector3d cp = p - c;
-    const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-    if (d6 >= 0 && d5 <= d6) return (p - c).norm();
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + ac * (d2 / (d2 - d6)))).norm();
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-        return (p - (b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))))).norm();
-    }
-    const double denom = 1.0 / (va + vb + vc);
-    return (p - (a + ab * (vb * denom) + ac * (vc * denom))).norm();
-}
+namespace {
 
 /// A 40 x 40 mm square in the z = 0 plane made of 2 triangles: the vertices alone are 40 mm
 /// apart, so only surface samples can label points above the middle of the square.

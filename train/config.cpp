@@ -290,6 +290,7 @@ void visit_config(IO& io, TrainConfig& c) {
         m.boolean("rre", c.model.rre);
         m.num("width", c.model.width);
         m.num("dropout", c.model.dropout);
+        m.num("out_scale_mm", c.model.out_scale_mm);
     });
     io.object("loss", [&](IO& l) {
         l.num("seg", c.loss.seg);
@@ -298,6 +299,7 @@ void visit_config(IO& io, TrainConfig& c) {
         l.num("kp", c.loss.kp);
         l.num("res", c.loss.res);
         l.choice("t_loss", c.loss.t_loss, kTLosses);
+        l.boolean("symmetric_targets", c.loss.symmetric_targets);
     });
     io.object("optim", [&](IO& o) {
         OptimConfig& p = c.optim;
@@ -593,6 +595,8 @@ void validate(const TrainConfig& c, const std::string& where) {
               m.width);
     G2L_CHECK(std::isfinite(m.dropout) && m.dropout >= 0 && m.dropout < 1, where,
               ": 'model.dropout' must be in [0, 1), got ", m.dropout);
+    G2L_CHECK(std::isfinite(m.out_scale_mm) && m.out_scale_mm > 0, where,
+              ": 'model.out_scale_mm' must be finite and > 0, got ", m.out_scale_mm);
 
     const LossConfig& l = c.loss;
     const std::pair<const char*, double> weights[] = {

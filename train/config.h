@@ -71,12 +71,16 @@ struct ModelConfig {
     bool rre = true;                 ///< block C (rotation residual estimator)
     double width = 1.0;              ///< channel multiplier (> 0)
     double dropout = 0.2;            ///< dropout before the last layer of each head
+    double out_scale_mm = 1.0;       ///< unit of the mm-valued outputs (nn::G2LConfig)
 };
 
 /// Loss weights (spec §6: 10 L_seg + L_T/10 + 10 L_vec + L_kp/100 + L_res/100).
 struct LossConfig {
     double seg = 10, t = 0.1, vec = 10, kp = 0.01, res = 0.01;
     std::string t_loss = "mse";  ///< "mse" | "smooth_l1"
+    /// Rotation targets: the geometric symmetry of the model nearest the prediction (min over
+    /// symmetries, geometry/symmetry.h) instead of the single GT pose. Off = paper.
+    bool symmetric_targets = false;
 };
 
 /// Per-sub-network learning-rate multipliers (official code: seg 1, tnet 10, evf 1, rot 30,

@@ -20,6 +20,7 @@ nn::G2LConfig model_config(const TrainConfig& cfg, int num_keypoints) {
     mc.width = cfg.model.width;
     mc.dropout = cfg.model.dropout;
     mc.seed = cfg.seed;
+    mc.out_scale_mm = cfg.model.out_scale_mm;
     return mc;
 }
 
@@ -28,7 +29,7 @@ namespace {
 json model_json(const nn::G2LConfig& c) {
     return {{"num_classes", c.num_classes}, {"num_keypoints", c.num_keypoints}, {"evf", c.evf},
             {"rre", c.rre}, {"width", c.width}, {"dropout", c.dropout}, {"seed", c.seed},
-            {"rre_dropout", c.rre_dropout}};
+            {"rre_dropout", c.rre_dropout}, {"out_scale_mm", c.out_scale_mm}};
 }
 
 const json& key(const json& j, const char* k, const std::string& path) {
@@ -61,7 +62,8 @@ void save_training_checkpoint(const std::string& path, const nn::G2LNet& net,
     meta["sampling"] = {{"crop", cfg.sampling.crop}, {"radius_scale", cfg.sampling.radius_scale}};
     meta["resume"] = {{"epoch", st.epoch}, {"pos", st.pos}, {"global_step", st.global_step},
                       {"epoch_batches", st.epoch_batches}, {"epoch_loss", st.epoch_loss},
-                      {"best_val", st.best_val}, {"adam_step", adam.step_count()}};
+                      {"best_val", st.best_val}, {"seconds", st.seconds},
+                      {"adam_step", adam.step_count()}};
     meta["config"] = json::parse(config_to_json(cfg));
     save_checkpoint(path, tensors, meta.dump());
 }
@@ -71,7 +73,9 @@ ResumeState load_training_checkpoint(const std::string& path, nn::G2LNet& net, n
     const json meta = json::parse(ck.meta_json);
     G2L_CHECK(meta.value("format", "") == "g2l-train", "checkpoint '", path,
               "' is not a g2l training checkpoint (format '", meta.value("format", ""), "')");
-    G2L_CHECK(key(meta, "model", path) == model_json(net.config()), "checkpoint '", path,
+    json saved_model = key(meta, "model", path);
+    if (!saved_model.contains("out_scale_mm")) saved_model["out_scale_mm"] = 1.0;  // older files
+    G2L_CHECK(saved_model == model_json(net.config()), "checkpoint '", path,
               "' was trained with model ", meta.at("model").dump(), " but the config builds ",
               model_json(net.config()).dump());
     std::map<std::string, Tensor> model;
@@ -91,6 +95,7 @@ ResumeState load_training_checkpoint(const std::string& path, nn::G2LNet& net, n
     st.epoch_batches = r.at("epoch_batches").get<int64_t>();
     st.epoch_loss = r.at("epoch_loss").get<double>();
     st.best_val = r.at("best_val").get<double>();
+    st.seconds = r.value("seconds", 0.0);  // absent in checkpoints from before 2026-11-23
     return st;
 }
 
@@ -116,6 +121,7 @@ LoadedModel load_model(const std::string& path) {
         c.dropout = mj.at("dropout");
         c.seed = mj.at("seed");
         c.rre_dropout = mj.at("rre_dropout");
+        c.out_scale_mm = mj.value("out_scale_mm", 1.0);  // absent before 2026-11-23
         m.net = std::make_unique<nn::G2LNet>(c);
         for (const auto& p : key(meta, "classes", path)) m.class_of[p.at(0)] = p.at(1);
         for (const auto& k : key(meta, "keypoints", path)) {

@@ -24,6 +24,7 @@ struct ResumeState {
     int64_t epoch_batches = 0;  ///< batches done in the current epoch
     double epoch_loss = 0;      ///< sum of their losses
     double best_val = -1;       ///< best validation ADD-S AUC so far
+    double seconds = 0;         ///< wall-clock seconds of training so far (all sessions)
 };
 
 /// The network hyper-parameters of a config (K = number of keypoints per object).

@@ -27,7 +27,7 @@ Tensor one_hot(const std::vector<PoseSample>& s, int num_classes) {
 
 StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
                     const KeypointTable& keypoints, int num_classes, int seg_points,
-                    const LossWeights& w, Rng& rng) {
+                    const LossWeights& w, Rng& rng, const SymmetricKeypoints* symmetric) {
     const int64_t B = int64_t(samples.size());
     G2L_CHECK(B > 0, "g2l_step: empty batch");
     G2L_CHECK(seg_points > 0, "g2l_step: seg_points must be > 0, got ", seg_points);
@@ -62,6 +62,7 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
     Tensor vec_target = Tensor::zeros({B, 3 * int64_t(K), M});
     Tensor kp_target = Tensor::empty({B, K, 3});
     std::vector<Eigen::Vector3f> sel_mean(static_cast<size_t>(B));
+    std::vector<std::vector<int32_t>> picks(static_cast<size_t>(B));
     int64_t correct = 0;
     for (int64_t b = 0; b < B; ++b) {
         const PoseSample& s = samples[size_t(b)];
@@ -90,32 +91,22 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
         G2L_CHECK(s.class_index < int(keypoints.size()) &&
                       int(keypoints[size_t(s.class_index)].size()) == K,
                   "g2l_step: no ", K, " keypoints for class index ", s.class_index);
-        const auto& kpm = keypoints[size_t(s.class_index)];
-        std::vector<Eigen::Vector3f> kpc(static_cast<size_t>(K));  // GT keypoints in the canonical frame
-        for (int k = 0; k < K; ++k) {
-            kpc[size_t(k)] = s.R * kpm[size_t(k)];
-            for (int c = 0; c < 3; ++c) kp_target.data<float>()[(b * K + k) * 3 + c] = kpc[size_t(k)][c];
-        }
+        if (symmetric)
+            G2L_CHECK(s.class_index < int(symmetric->size()) &&
+                          !(*symmetric)[size_t(s.class_index)].empty(),
+                      "g2l_step: no symmetric keypoint sets for class index ", s.class_index);
         for (int c = 0; c < 3; ++c) t_target.data<float>()[b * 3 + c] = s.t[c] - mean[c];
         float* pt = xt.data<float>() + b * 3 * M;
         float* pr = xr.data<float>() + b * 3 * M;
-        float* pv = vec_target.data<float>() + b * 3 * K * M;
         for (int64_t m = 0; m < M; ++m) {
             const size_t p = size_t(pick[size_t(m)]);
             const Eigen::Vector3f q(s.points[p * 3], s.points[p * 3 + 1], s.points[p * 3 + 2]);
-            const Eigen::Vector3f c = q - s.t;
             for (int a = 0; a < 3; ++a) {
                 pt[a * M + m] = q[a] - mean[a];
-                pr[a * M + m] = c[a];
-            }
-            if (!s.labels[p]) continue;  // background points keep zero vector targets (spec §5)
-            for (int k = 0; k < K; ++k) {
-                Eigen::Vector3f v = kpc[size_t(k)] - c;
-                const float len = v.norm();
-                if (len > 1e-6f) v /= len;
-                for (int a = 0; a < 3; ++a) pv[(k * 3 + a) * M + m] = v[a];
+                pr[a * M + m] = q[a] - s.t[a];
             }
         }
+        picks[size_t(b)] = std::move(pick);
     }
     out.seg_accuracy = double(correct) / double(B * N);
 
@@ -138,6 +129,50 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
 
     // ---- 4. rotation blocks in the canonical frame ----
     const nn::RotOut rot = net.rot_forward(xr, onehot);
+    // Targets: the GT keypoints R * kp (of the symmetric set nearest block B's prediction when
+    // `symmetric` is given) and, for object points, unit vectors to them (spec §5).
+    int64_t n_sym = 0;
+    for (int64_t b = 0; b < B; ++b) {
+        const PoseSample& s = samples[size_t(b)];
+        const KeypointTable* sets = symmetric ? &(*symmetric)[size_t(s.class_index)] : nullptr;
+        const std::vector<Eigen::Vector3f>* kpm = &keypoints[size_t(s.class_index)];
+        if (sets) {
+            const float* pred = rot.keypoints.data<float>() + b * K * 3;
+            double best = -1;
+            size_t best_i = 0;
+            for (size_t i = 0; i < sets->size(); ++i) {
+                G2L_CHECK(int((*sets)[i].size()) == K, "g2l_step: symmetric keypoint set ", i,
+                          " of class index ", s.class_index, " has ", (*sets)[i].size(),
+                          " keypoints, expected ", K);
+                double d = 0;
+                for (int k = 0; k < K; ++k)
+                    d += (s.R * (*sets)[i][size_t(k)] - Eigen::Map<const Eigen::Vector3f>(pred + k * 3))
+                             .squaredNorm();
+                if (best < 0 || d < best) best = d, best_i = i;
+            }
+            kpm = &(*sets)[best_i];
+            n_sym += best_i != 0;
+        }
+        std::vector<Eigen::Vector3f> kpc(static_cast<size_t>(K));  // canonical-frame keypoints
+        for (int k = 0; k < K; ++k) {
+            kpc[size_t(k)] = s.R * (*kpm)[size_t(k)];
+            for (int c = 0; c < 3; ++c) kp_target.data<float>()[(b * K + k) * 3 + c] = kpc[size_t(k)][c];
+        }
+        if (!rot.vectors.defined()) continue;
+        const float* pr = xr.data<float>() + b * 3 * M;
+        float* pv = vec_target.data<float>() + b * 3 * K * M;
+        for (int64_t m = 0; m < M; ++m) {
+            if (!s.labels[size_t(picks[size_t(b)][size_t(m)])]) continue;  // background: zero targets
+            const Eigen::Vector3f c(pr[m], pr[M + m], pr[2 * M + m]);
+            for (int k = 0; k < K; ++k) {
+                Eigen::Vector3f v = kpc[size_t(k)] - c;
+                const float len = v.norm();
+                if (len > 1e-6f) v /= len;
+                for (int a = 0; a < 3; ++a) pv[(k * 3 + a) * M + m] = v[a];
+            }
+        }
+    }
+    out.sym_fraction = double(n_sym) / double(B);
     Tensor total = nn::mul_scalar(l_seg, w.seg) + nn::mul_scalar(l_t, w.t);
     out.seg = l_seg.item<double>();
     out.t = l_t.item<double>();

@@ -16,6 +16,7 @@
 #include "core/threads.h"
 #include "data/bop.h"
 #include "geometry/keypoints.h"
+#include "geometry/symmetry.h"
 #include "nn/models/g2l_net.h"
 #include "nn/optim.h"
 #include "nn/schedule.h"
@@ -46,6 +47,7 @@ struct RunData {
     std::map<int, train::SampleModel> models;                 // obj_id -> mesh + info
     std::map<int, int> class_of;                              // obj_id -> class index
     KeypointTable keypoints;                                  // class index -> K keypoints
+    SymmetricKeypoints sym_keypoints;  // class index -> symmetric keypoint sets (if enabled)
     std::unique_ptr<SampleMaker> maker;
     struct Src {
         const SourceConfig* cfg;
@@ -106,6 +108,22 @@ RunData prepare_data(const TrainConfig& cfg) {
         const geom::Points kp = geom::keypoints(*rd.models[id].mesh, rd.models[id].info,
                                                 cfg.model.keypoints);
         for (int64_t k = 0; k < kp.rows(); ++k) rd.keypoints[size_t(cls)].push_back(kp.row(k).transpose());
+    }
+    if (cfg.loss.symmetric_targets) {
+        rd.sym_keypoints.resize(rd.class_of.size());
+        for (const auto& [id, cls] : rd.class_of) {
+            const auto tree = geom::ModelKdTree::from_mesh(*rd.models[id].mesh,
+                                                           cfg.sampling.surface_spacing_mm);
+            const auto syms = geom::geometric_symmetries(tree, rd.models[id].info);
+            for (const auto& s : syms) {
+                std::vector<Eigen::Vector3f> set;
+                for (const auto& p : rd.keypoints[size_t(cls)]) set.push_back(s.R * p + s.t);
+                rd.sym_keypoints[size_t(cls)].push_back(std::move(set));
+            }
+            std::printf("object %d: %zu geometric symmetr%s (rotation targets take the nearest)\n",
+                        id, syms.size(), syms.size() == 1 ? "y" : "ies");
+        }
+        std::fflush(stdout);
     }
     SampleConfig sc;
     sc.crop = cfg.sampling.crop;
@@ -216,11 +234,13 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
     int epoch = 0;
     int64_t pos = 0, global_step = 0, epoch_batches = 0;
     double epoch_loss = 0, best_val = -1;
+    double seconds_before = 0;  // training time of earlier sessions of this run
     if (!opt.resume_dir.empty()) {
         const std::string path = (fs::path(run_dir) / "last.g2l").string();
         const ResumeState st = load_training_checkpoint(path, net, adam);
         epoch = st.epoch; pos = st.pos; global_step = st.global_step;
         epoch_batches = st.epoch_batches; epoch_loss = st.epoch_loss; best_val = st.best_val;
+        seconds_before = st.seconds;
         truncate_jsonl(fs::path(run_dir) / "steps.jsonl", "step", global_step);
         truncate_jsonl(fs::path(run_dir) / "epochs.jsonl", "epoch", epoch - 1);
     } else {
@@ -237,7 +257,9 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
     const auto t_start = Clock::now();
     int64_t samples_done = 0;
     auto save = [&](const std::string& name) {
-        ResumeState st{epoch, pos, global_step, epoch_batches, epoch_loss, best_val};
+        const double now = std::chrono::duration<double>(Clock::now() - t_start).count();
+        ResumeState st{epoch, pos, global_step, epoch_batches, epoch_loss, best_val,
+                       seconds_before + now};
         save_training_checkpoint((fs::path(run_dir) / name).string(), net, adam, cfg, rd.class_of,
                                  rd.keypoints, st);
     };
@@ -271,7 +293,8 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
             const auto t0 = Clock::now();
             adam.zero_grad();
             StepLosses L = g2l_step(net, batch, rd.keypoints, mc.num_classes,
-                                    cfg.sampling.seg_points, lw, step_rng);
+                                    cfg.sampling.seg_points, lw, step_rng,
+                                    rd.sym_keypoints.empty() ? nullptr : &rd.sym_keypoints);
             const double loss = L.total.item<double>();
             if (!std::isfinite(loss)) {
                 std::string objs;
@@ -293,6 +316,7 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                           {"loss", loss}, {"seg", L.seg}, {"t", L.t}, {"vec", L.vec},
                           {"kp", L.kp}, {"res", L.res}, {"seg_acc", L.seg_accuracy},
                           {"t_err_mm", L.t_error_mm}, {"kp_err_mm", L.kp_error_mm},
+                          {"sym_frac", L.sym_fraction},
                           {"step_s", dt}};
                 steps_log << j.dump() << "\n";
                 steps_log.flush();
@@ -302,8 +326,9 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
             const double remaining_batches = double(batches_per_epoch - epoch_batches) +
                                              double(cfg.train.epochs - epoch - 1) * batches_per_epoch;
             double eta = remaining_batches * cfg.train.batch / std::max(1e-9, sps);
+            const double run_seconds = seconds_before + elapsed;  // across resumes
             if (cfg.train.time_limit_min > 0)  // the run stops at the time limit
-                eta = std::min(eta, std::max(0.0, cfg.train.time_limit_min * 60 - elapsed));
+                eta = std::min(eta, std::max(0.0, cfg.train.time_limit_min * 60 - run_seconds));
             if (tty) {
                 const int width = 24;
                 const int fill = int(width * epoch_batches / batches_per_epoch);
@@ -323,7 +348,8 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                 std::fflush(stdout);
             }
             if (opt.max_steps > 0 && global_step >= opt.max_steps) stop = true;
-            if (cfg.train.time_limit_min > 0 && elapsed > cfg.train.time_limit_min * 60) stop = true;
+            if (cfg.train.time_limit_min > 0 && run_seconds > cfg.train.time_limit_min * 60)
+                stop = true;
             if (stop) break;
         }
         if (tty) std::printf("\n");

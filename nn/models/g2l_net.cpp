@@ -3,6 +3,8 @@
 
 #include <cmath>
 
+#include "nn/ops/elementwise.h"
+
 namespace g2l::nn {
 
 namespace {
@@ -17,6 +19,8 @@ const G2LConfig& checked(const G2LConfig& c) {
               c.dropout);
     G2L_CHECK(c.rre_dropout >= 0 && c.rre_dropout < 1,
               "G2LConfig: rre_dropout must be in [0, 1), got ", c.rre_dropout);
+    G2L_CHECK(std::isfinite(c.out_scale_mm) && c.out_scale_mm > 0,
+              "G2LConfig: out_scale_mm must be finite and > 0, got ", c.out_scale_mm);
     return c;
 }
 
@@ -49,12 +53,16 @@ G2LNet::G2LNet(const G2LConfig& config) : cfg_(checked(config)) {
             "rre", std::make_shared<RreNet>(w, C, K, cfg_.rre_dropout, rng, seeds.next_u64()));
 }
 
+Tensor G2LNet::scaled(const Tensor& t) const {
+    return cfg_.out_scale_mm == 1.0 ? t : mul_scalar(t, cfg_.out_scale_mm);
+}
+
 Tensor G2LNet::seg_forward(const Tensor& x, const Tensor& onehot) {
     return seg_->forward(x, onehot);
 }
 
 Tensor G2LNet::t_forward(const Tensor& x, const Tensor& onehot) {
-    return tnet_->forward(x, onehot);
+    return scaled(tnet_->forward(x, onehot));
 }
 
 RotOut G2LNet::rot_forward(const Tensor& x, const Tensor& onehot) {
@@ -64,13 +72,13 @@ RotOut G2LNet::rot_forward(const Tensor& x, const Tensor& onehot) {
         EvfOut a = evf_->forward(x, onehot);
         out.vectors = a.vectors;
         feat = a.feat;  // already detached
-        out.keypoints = rot_->forward(out.vectors, feat);
+        out.keypoints = scaled(rot_->forward(out.vectors, feat));
     } else {
         const PointFeatures live = rot_->features(x, onehot);
-        out.keypoints = rot_->forward(Tensor(), live);
+        out.keypoints = scaled(rot_->forward(Tensor(), live));
         feat = live.detached();
     }
-    if (rre_) out.residual = rre_->forward(feat);
+    if (rre_) out.residual = scaled(rre_->forward(feat));
     return out;
 }
 

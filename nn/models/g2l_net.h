@@ -27,6 +27,10 @@ struct G2LConfig {
     double dropout = 0.2;    ///< Dropout before the last layer of seg, tnet, evf, rot
     uint64_t seed = 1;       ///< initialisation and dropout streams
     double rre_dropout = 0.3;  ///< Dropout on block C's input (official 0.3)
+    /// Unit of the millimetre-valued outputs (T-net residual, block B keypoints, block C
+    /// residual): the last layer predicts value / out_scale_mm. The official code uses 1, which
+    /// makes Adam need thousands of steps just to reach the ~100 mm output range.
+    double out_scale_mm = 1.0;
 };
 
 /// The outputs of the rotation branch.
@@ -77,6 +81,7 @@ public:
     const std::shared_ptr<RreNet>& rre() const { return rre_; }
 
 private:
+    Tensor scaled(const Tensor& t) const;  ///< t * out_scale_mm (identity at 1)
     G2LConfig cfg_;
     std::shared_ptr<SegNet> seg_;
     std::shared_ptr<TNet> tnet_;

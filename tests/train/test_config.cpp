@@ -54,8 +54,9 @@ json everything() {
                    "surface_spacing_mm": 3, "min_points": 20, "min_visib_fract": 0.3},
       "augment": {"enabled": false, "shift_mm": [1, 2, 3], "rot_deg": 15, "point_noise_mm": 1.5},
       "model": {"num_classes": 21, "keypoints": "fps12", "evf": false, "rre": false,
-                "width": 0.5, "dropout": 0.1},
-      "loss": {"seg": 1, "t": 2, "vec": 3, "kp": 4, "res": 5, "t_loss": "smooth_l1"},
+                "width": 0.5, "dropout": 0.1, "out_scale_mm": 100},
+      "loss": {"seg": 1, "t": 2, "vec": 3, "kp": 4, "res": 5, "t_loss": "smooth_l1",
+               "symmetric_targets": true},
       "optim": {"lr": 0.005, "beta1": 0.8, "beta2": 0.95, "eps": 1e-6, "weight_decay": 0.0001,
                 "lr_mult": {"seg": 2, "tnet": 3, "evf": 4, "rot": 5, "rre": 6}},
       "schedule": {"kind": "official", "step_epochs": 7, "gamma": 0.25},
@@ -137,6 +138,8 @@ TEST_CASE("config: defaults are the paper's values", "[config]") {
     CHECK(c.model.rre);
     CHECK(c.model.width == 1.0);
     CHECK(c.model.dropout == 0.2);
+    CHECK(c.model.out_scale_mm == 1.0);
+    CHECK_FALSE(c.loss.symmetric_targets);
     CHECK(c.loss.seg == 10);
     CHECK(c.loss.t == 0.1);
     CHECK(c.loss.vec == 10);
@@ -221,6 +224,8 @@ TEST_CASE("config: every key round-trips through config_to_json", "[config]") {
     CHECK_FALSE(c.model.rre);
     CHECK(c.model.width == 0.5);
     CHECK(c.model.dropout == 0.1);
+    CHECK(c.model.out_scale_mm == 100);
+    CHECK(c.loss.symmetric_targets);
     CHECK(c.loss.seg == 1);
     CHECK(c.loss.t == 2);
     CHECK(c.loss.vec == 3);
@@ -309,6 +314,9 @@ TEST_CASE("config: wrong types name the key and the value", "[config]") {
     j["model"]["evf"] = 1;
     REQUIRE_THROWS_WITH(parse(j), Contains("'model.evf' must be true or false, got 1"));
     j = minimal();
+    j["loss"]["symmetric_targets"] = "yes";
+    REQUIRE_THROWS_WITH(parse(j), Contains("'loss.symmetric_targets' must be true or false"));
+    j = minimal();
     j["augment"]["shift_mm"] = json::array({1, 2});
     REQUIRE_THROWS_WITH(parse(j), Contains("'augment.shift_mm' must be an array of 3 numbers"));
     j = minimal();
@@ -374,6 +382,8 @@ TEST_CASE("config: value checks name the key and the value", "[config]") {
         {[](json& j) { j["augment"]["rot_deg"] = 200; }, "'augment.rot_deg' must be in [0, 180]"},
         {[](json& j) { j["model"]["width"] = 0; }, "'model.width' must be > 0, got 0"},
         {[](json& j) { j["model"]["dropout"] = 1; }, "'model.dropout' must be in [0, 1)"},
+        {[](json& j) { j["model"]["out_scale_mm"] = -2; },
+         "'model.out_scale_mm' must be finite and > 0, got -2"},
         {[](json& j) { j["schedule"]["gamma"] = 0; }, "'schedule.gamma' must be in (0, 1]"},
         {[](json& j) { j["threads"] = -1; }, "'threads' must be >= 0"},
         {[](json& j) { j["loss"] = {{"seg", 0}, {"t", 0}, {"vec", 0}, {"kp", 0}, {"res", 0}}; },

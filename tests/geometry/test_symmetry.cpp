@@ -1,0 +1,165 @@
+// SPDX-License-Identifier: MIT
+// Geometric symmetries found from the model surface: boxes, cubes, cylinders, and a box whose
+// bump breaks every symmetry; bad options throw naming the value.
+#include <Eigen/Dense>
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <vector>
+
+#include "core/error.h"
+#include "geometry/labels.h"
+#include "geometry/symmetry.h"
+
+using namespace g2l;
+using namespace g2l::geom;
+
+namespace {
+
+const Eigen::Vector3f kCentre(10.f, -5.f, 3.f);  // off the origin: rotations are about the box centre
+
+// Points on the surface of an axis-aligned box of size (sx, sy, sz) centred at kCentre (grid
+// `step` mm), plus, if `bump`, a solid 24 mm cube of points on the +z face at one corner.
+Points box_surface(float sx, float sy, float sz, float step, bool bump = false) {
+    std::vector<Eigen::Vector3f> pts;
+    const Eigen::Vector3f h(sx / 2, sy / 2, sz / 2);
+    for (int axis = 0; axis < 3; ++axis) {
+        const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+        for (float a = -h[u]; a <= h[u] + 1e-3f; a += step)
+            for (float b = -h[v]; b <= h[v] + 1e-3f; b += step)
+                for (float sgn : {-1.f, 1.f}) {
+                    Eigen::Vector3f p;
+                    p[axis] = sgn * h[axis];
+                    p[u] = a;
+                    p[v] = b;
+                    pts.push_back(p + kCentre);
+                }
+    }
+    if (bump)
+        for (float a = 0; a <= 24; a += step)
+            for (float b = 0; b <= 24; b += step)
+                for (float c = 0; c <= 24; c += step)
+                    pts.push_back(kCentre + Eigen::Vector3f(h.x() - 24 + a, h.y() - 24 + b, h.z() + c));
+    Points out(Eigen::Index(pts.size()), 3);
+    for (size_t i = 0; i < pts.size(); ++i) out.row(Eigen::Index(i)) = pts[i].transpose();
+    return out;
+}
+
+// A closed cylinder around z through kCentre: radius r, height hgt, 72 points per ring.
+Points cylinder_surface(float r, float hgt, float step) {
+    std::vector<Eigen::Vector3f> pts;
+    const double pi = std::acos(-1.0);
+    for (float z = -hgt / 2; z <= hgt / 2 + 1e-3f; z += step)
+        for (int k = 0; k < 72; ++k) {
+            const double a = 2 * pi * k / 72;
+            pts.push_back(kCentre + Eigen::Vector3f(float(r * std::cos(a)), float(r * std::sin(a)), z));
+        }
+    for (float rr = step; rr < r; rr += step)
+        for (int k = 0; k < 72; ++k) {
+            const double a = 2 * pi * k / 72;
+            for (float z : {-hgt / 2, hgt / 2})
+                pts.push_back(kCentre + Eigen::Vector3f(float(rr * std::cos(a)), float(rr * std::sin(a)), z));
+        }
+    Points out(Eigen::Index(pts.size()), 3);
+    for (size_t i = 0; i < pts.size(); ++i) out.row(Eigen::Index(i)) = pts[i].transpose();
+    return out;
+}
+
+ModelInfo info_of(const Points& p) {
+    ModelInfo info;
+    const Eigen::Vector3f lo = p.colwise().minCoeff(), hi = p.colwise().maxCoeff();
+    info.min = lo.cast<double>();
+    info.size = (hi - lo).cast<double>();
+    info.diameter = double((hi - lo).norm());  // the bbox diagonal bounds the diameter
+    return info;
+}
+
+// Every accepted transform maps the point set onto itself and fixes the box centre.
+void check_valid(const ModelKdTree& tree, const std::vector<SymmetryTransform>& syms) {
+    for (const auto& s : syms) {
+        CHECK((s.R * s.R.transpose() - Eigen::Matrix3f::Identity()).norm() < 1e-5f);
+        CHECK(s.R.determinant() == Approx(1.0).margin(1e-5));
+        CHECK((s.R * kCentre + s.t - kCentre).norm() < 1e-3f);
+        CHECK(symmetry_score(tree, s).error_mm < 1.0);
+    }
+}
+
+}  // namespace
+
+TEST_CASE("symmetries: a box with three different sides has exactly its three 180-degree flips",
+          "[geometry][symmetry]") {
+    const Points pts = box_surface(40, 60, 100, 2);
+    const ModelKdTree tree(pts);
+    const auto syms = geometric_symmetries(tree, info_of(pts));
+    REQUIRE(syms.size() == 4);
+    CHECK(syms[0].R.isIdentity(1e-6f));
+    CHECK(syms[0].t.norm() < 1e-6f);
+    for (size_t i = 1; i < syms.size(); ++i) {
+        // A flip about a coordinate axis: diagonal with one +1 and two -1.
+        CHECK(syms[i].R.isDiagonal(1e-5f));
+        CHECK(syms[i].R.trace() == Approx(-1.0).margin(1e-5));
+    }
+    check_valid(tree, syms);
+}
+
+TEST_CASE("symmetries: a cube has the 24 rotations of the cube group", "[geometry][symmetry]") {
+    const Points pts = box_surface(50, 50, 50, 2);
+    const ModelKdTree tree(pts);
+    const auto syms = geometric_symmetries(tree, info_of(pts));
+    CHECK(syms.size() == 24);
+    check_valid(tree, syms);
+}
+
+TEST_CASE("symmetries: a cylinder has its axis turns and the flips about horizontal axes",
+          "[geometry][symmetry]") {
+    const Points pts = cylinder_surface(30, 100, 2);
+    const ModelKdTree tree(pts);
+    SymmetryOptions o;
+    o.axis_steps = 24;
+    const auto syms = geometric_symmetries(tree, info_of(pts), o);
+    // 24 turns about z (identity included) + 180 degrees about x, y and the two diagonals.
+    CHECK(syms.size() == 28);
+    int z_turns = 0;
+    for (const auto& s : syms) z_turns += (s.R.col(2) - Eigen::Vector3f::UnitZ()).norm() < 1e-5f;
+    CHECK(z_turns == 24);
+    check_valid(tree, syms);
+}
+
+TEST_CASE("symmetries: a bump on one face breaks every symmetry of the box",
+          "[geometry][symmetry]") {
+    const Points pts = box_surface(40, 60, 100, 2, /*bump=*/true);
+    const ModelKdTree tree(pts);
+    const auto syms = geometric_symmetries(tree, info_of(box_surface(40, 60, 100, 2)));
+    REQUIRE(syms.size() == 1);
+    CHECK(syms[0].R.isIdentity(1e-6f));
+}
+
+TEST_CASE("symmetries: score of a flip, bad diameters and options throw naming the value",
+          "[geometry][symmetry]") {
+    const Points pts = box_surface(40, 60, 100, 2);
+    const ModelKdTree tree(pts);
+    SymmetryTransform flip;
+    flip.R = Eigen::Vector3f(1, -1, -1).asDiagonal();
+    flip.t = kCentre - flip.R * kCentre;
+    const SymmetryScore sc = symmetry_score(tree, flip);
+    CHECK(sc.error_mm < 1e-3);
+    CHECK(sc.displacement_mm > 40);  // y and z flip: points move by 2 * sqrt(y^2 + z^2) on average
+    SymmetryTransform quarter;  // 90 degrees about z: a 40 x 60 face does not map onto itself
+    quarter.R << 0, -1, 0, 1, 0, 0, 0, 0, 1;
+    quarter.t = kCentre - quarter.R * kCentre;
+    CHECK(symmetry_score(tree, quarter).error_mm > 3);
+
+    ModelInfo info = info_of(pts);
+    ModelInfo bad = info;
+    bad.diameter = 0;
+    CHECK_THROWS_WITH(geometric_symmetries(tree, bad), Catch::Contains("diameter") && Catch::Contains("0"));
+    SymmetryOptions o;
+    o.tolerance_frac = 1.5;
+    CHECK_THROWS_WITH(geometric_symmetries(tree, info, o), Catch::Contains("tolerance_frac") && Catch::Contains("1.5"));
+    o = {};
+    o.axis_steps = 0;
+    CHECK_THROWS_WITH(geometric_symmetries(tree, info, o), Catch::Contains("axis_steps"));
+    o = {};
+    o.displacement_frac = std::nan("");
+    CHECK_THROWS_WITH(geometric_symmetries(tree, info, o), Catch::Contains("displacement_frac"));
+    CHECK_THROWS_WITH(symmetry_score(tree, flip, 0), Catch::Contains("max_points"));
+}

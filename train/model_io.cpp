@@ -32,10 +32,36 @@ json model_json(const nn::G2LConfig& c) {
             {"rre_dropout", c.rre_dropout}, {"out_scale_mm", c.out_scale_mm}};
 }
 
+// The inverse of model_json. Keys added after the first checkpoints default to the behaviour
+// those files were trained with (out_scale_mm: 2026-11-23). Throws json::exception.
+nn::G2LConfig model_from_json(const json& mj) {
+    nn::G2LConfig c;
+    c.num_classes = mj.at("num_classes");
+    c.num_keypoints = mj.at("num_keypoints");
+    c.evf = mj.at("evf");
+    c.rre = mj.at("rre");
+    c.width = mj.at("width");
+    c.dropout = mj.at("dropout");
+    c.seed = mj.at("seed");
+    c.rre_dropout = mj.at("rre_dropout");
+    c.out_scale_mm = mj.value("out_scale_mm", 1.0);
+    return c;
+}
+
 const json& key(const json& j, const char* k, const std::string& path) {
     G2L_CHECK(j.is_object() && j.contains(k), "checkpoint '", path, "': metadata has no '", k,
               "' (not a g2l training checkpoint?)");
     return j.at(k);
+}
+
+// The checkpoint's JSON metadata; throws g2l::Error naming the file when it is not JSON.
+json read_meta(const Checkpoint& ck, const std::string& path) {
+    try {
+        return json::parse(ck.meta_json);
+    } catch (const std::exception& e) {
+        G2L_CHECK(false, "checkpoint '", path, "': metadata is not JSON: ", e.what());
+    }
+    return {};
 }
 
 }  // namespace
@@ -70,11 +96,15 @@ void save_training_checkpoint(const std::string& path, const nn::G2LNet& net,
 
 ResumeState load_training_checkpoint(const std::string& path, nn::G2LNet& net, nn::Adam& adam) {
     const Checkpoint ck = load_checkpoint(path);
-    const json meta = json::parse(ck.meta_json);
+    const json meta = read_meta(ck, path);
     G2L_CHECK(meta.value("format", "") == "g2l-train", "checkpoint '", path,
               "' is not a g2l training checkpoint (format '", meta.value("format", ""), "')");
-    json saved_model = key(meta, "model", path);
-    if (!saved_model.contains("out_scale_mm")) saved_model["out_scale_mm"] = 1.0;  // older files
+    json saved_model;
+    try {
+        saved_model = model_json(model_from_json(key(meta, "model", path)));
+    } catch (const json::exception& e) {
+        G2L_CHECK(false, "checkpoint '", path, "': malformed metadata: ", e.what());
+    }
     G2L_CHECK(saved_model == model_json(net.config()), "checkpoint '", path,
               "' was trained with model ", meta.at("model").dump(), " but the config builds ",
               model_json(net.config()).dump());
@@ -87,42 +117,32 @@ ResumeState load_training_checkpoint(const std::string& path, nn::G2LNet& net, n
         G2L_CHECK(false, "checkpoint '", path, "': ", e.what());
     }
     const json& r = key(meta, "resume", path);
-    adam.load_state(ck.tensors, r.at("adam_step").get<int64_t>());
     ResumeState st;
-    st.epoch = r.at("epoch").get<int>();
-    st.pos = r.at("pos").get<int64_t>();
-    st.global_step = r.at("global_step").get<int64_t>();
-    st.epoch_batches = r.at("epoch_batches").get<int64_t>();
-    st.epoch_loss = r.at("epoch_loss").get<double>();
-    st.best_val = r.at("best_val").get<double>();
-    st.seconds = r.value("seconds", 0.0);  // absent in checkpoints from before 2026-11-23
+    int64_t adam_step = 0;
+    try {
+        adam_step = r.at("adam_step").get<int64_t>();
+        st.epoch = r.at("epoch").get<int>();
+        st.pos = r.at("pos").get<int64_t>();
+        st.global_step = r.at("global_step").get<int64_t>();
+        st.epoch_batches = r.at("epoch_batches").get<int64_t>();
+        st.epoch_loss = r.at("epoch_loss").get<double>();
+        st.best_val = r.at("best_val").get<double>();
+        st.seconds = r.value("seconds", 0.0);  // absent in checkpoints from before 2026-11-23
+    } catch (const json::exception& e) {
+        G2L_CHECK(false, "checkpoint '", path, "': malformed resume metadata: ", e.what());
+    }
+    adam.load_state(ck.tensors, adam_step);
     return st;
 }
 
 LoadedModel load_model(const std::string& path) {
     const Checkpoint ck = load_checkpoint(path);
-    json meta;
-    try {
-        meta = json::parse(ck.meta_json);
-    } catch (const std::exception& e) {
-        G2L_CHECK(false, "checkpoint '", path, "': metadata is not JSON: ", e.what());
-    }
+    const json meta = read_meta(ck, path);
     G2L_CHECK(meta.value("format", "") == "g2l-train", "checkpoint '", path,
               "' is not a g2l model checkpoint (format '", meta.value("format", ""), "')");
     LoadedModel m;
     try {
-        const json& mj = key(meta, "model", path);
-        nn::G2LConfig c;
-        c.num_classes = mj.at("num_classes");
-        c.num_keypoints = mj.at("num_keypoints");
-        c.evf = mj.at("evf");
-        c.rre = mj.at("rre");
-        c.width = mj.at("width");
-        c.dropout = mj.at("dropout");
-        c.seed = mj.at("seed");
-        c.rre_dropout = mj.at("rre_dropout");
-        c.out_scale_mm = mj.value("out_scale_mm", 1.0);  // absent before 2026-11-23
-        m.net = std::make_unique<nn::G2LNet>(c);
+        m.net = std::make_unique<nn::G2LNet>(model_from_json(key(meta, "model", path)));
         for (const auto& p : key(meta, "classes", path)) m.class_of[p.at(0)] = p.at(1);
         for (const auto& k : key(meta, "keypoints", path)) {
             std::vector<Eigen::Vector3f> one;

@@ -109,22 +109,6 @@ RunData prepare_data(const TrainConfig& cfg) {
                                                 cfg.model.keypoints);
         for (int64_t k = 0; k < kp.rows(); ++k) rd.keypoints[size_t(cls)].push_back(kp.row(k).transpose());
     }
-    if (cfg.loss.symmetric_targets) {
-        rd.sym_keypoints.resize(rd.class_of.size());
-        for (const auto& [id, cls] : rd.class_of) {
-            const auto tree = geom::ModelKdTree::from_mesh(*rd.models[id].mesh,
-                                                           cfg.sampling.surface_spacing_mm);
-            const auto syms = geom::geometric_symmetries(tree, rd.models[id].info);
-            for (const auto& s : syms) {
-                std::vector<Eigen::Vector3f> set;
-                for (const auto& p : rd.keypoints[size_t(cls)]) set.push_back(s.R * p + s.t);
-                rd.sym_keypoints[size_t(cls)].push_back(std::move(set));
-            }
-            std::printf("object %d: %zu geometric symmetr%s (rotation targets take the nearest)\n",
-                        id, syms.size(), syms.size() == 1 ? "y" : "ies");
-        }
-        std::fflush(stdout);
-    }
     SampleConfig sc;
     sc.crop = cfg.sampling.crop;
     sc.points = cfg.sampling.points;
@@ -139,6 +123,21 @@ RunData prepare_data(const TrainConfig& cfg) {
     sc.augment = cfg.augment.enabled;
     rd.maker = std::make_unique<SampleMaker>(sc, rd.models, rd.class_of,
                                              cfg.sampling.surface_spacing_mm);
+    if (cfg.loss.symmetric_targets) {
+        rd.sym_keypoints.resize(rd.class_of.size());
+        for (const auto& [id, cls] : rd.class_of) {
+            // The sample maker's labelling tree: the same mesh surface, built once.
+            const auto syms = geom::geometric_symmetries(rd.maker->tree(id), rd.maker->info(id));
+            for (const auto& s : syms) {
+                std::vector<Eigen::Vector3f> set;
+                for (const auto& p : rd.keypoints[size_t(cls)]) set.push_back(s.R * p + s.t);
+                rd.sym_keypoints[size_t(cls)].push_back(std::move(set));
+            }
+            std::printf("object %d: %zu geometric symmetr%s (rotation targets take the nearest)\n",
+                        id, syms.size(), syms.size() == 1 ? "y" : "ies");
+        }
+        std::fflush(stdout);
+    }
     return rd;
 }
 

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
-// Small helpers shared by the general-op tests (test_elementwise / reduce / softmax / loss /
-// shape / dropout).
+// Small helpers shared by the op tests (test_elementwise / reduce / softmax / loss / shape /
+// dropout / conv2d / pool2d / upsample).
 #pragma once
 
 #include <catch2/catch.hpp>
@@ -24,6 +24,11 @@ inline std::vector<double> values(const Tensor& t) { return t.to(DType::F64).to_
 /// f64 tensor from values and shape (test inputs).
 inline Tensor f64(const std::vector<double>& v, const Shape& s) {
     return Tensor::from_vector<double>(v, s);
+}
+
+/// i32 tensor from values and shape (indices, labels).
+inline Tensor i32(const std::vector<int32_t>& v, const Shape& s) {
+    return Tensor::from_vector<int32_t>(v, s);
 }
 
 /// Element-wise |a - b| <= tol (sizes must match).

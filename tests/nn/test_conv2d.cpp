@@ -1,15 +1,15 @@
 // SPDX-License-Identifier: MIT
 #include <catch2/catch.hpp>
-#include <omp.h>
 
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <iostream>
 
 #include "core/rng.h"
+#include "core/threads.h"
 #include "gradcheck.h"
 #include "nn/ops/conv2d.h"
+#include "opsa_helpers.h"
 
 using namespace g2l;
 
@@ -211,30 +211,24 @@ TEST_CASE("conv2d: only the requested gradients are computed", "[nn][opsb]") {
 }
 
 TEST_CASE("conv2d: results are bitwise identical with 1 and 2 threads", "[nn][opsb]") {
-    const int prev = omp_get_max_threads();
     for (const ConvCase& c : {ConvCase{2, 64, 33, 31, 48, 3, 3, 1, 1, 1, 1, 1, 1, 1},
                               ConvCase{2, 32, 30, 30, 40, 1, 1, 1, 1, 0, 0, 1, 1, 1},
                               ConvCase{1, 16, 25, 27, 16, 3, 3, 2, 2, 1, 1, 1, 1, 4}}) {
-        std::vector<std::vector<float>> runs[2];
+        std::vector<Tensor> runs[2];
         for (int threads = 1; threads <= 2; ++threads) {
-            omp_set_num_threads(threads);
-            Inputs in = make_inputs(c, 11, DType::F32);
-            in.x.set_requires_grad();
-            in.w.set_requires_grad();
-            in.b.set_requires_grad();
-            const Tensor y = run(c, in);
-            Rng rng(12);
-            y.backward(Tensor::randn(y.shape(), rng));
-            runs[threads - 1] = {y.to_vector<float>(), in.x.grad().to_vector<float>(),
-                                 in.w.grad().to_vector<float>(), in.b.grad().to_vector<float>()};
+            testing::opsa::with_threads(threads, [&] {
+                Inputs in = make_inputs(c, 11, DType::F32);
+                in.x.set_requires_grad();
+                in.w.set_requires_grad();
+                in.b.set_requires_grad();
+                const Tensor y = run(c, in);
+                Rng rng(12);
+                y.backward(Tensor::randn(y.shape(), rng));
+                runs[threads - 1] = {y, in.x.grad(), in.w.grad(), in.b.grad()};
+            });
         }
-        for (size_t k = 0; k < 4; ++k) {
-            REQUIRE(runs[0][k].size() == runs[1][k].size());
-            CHECK(std::memcmp(runs[0][k].data(), runs[1][k].data(),
-                              runs[0][k].size() * sizeof(float)) == 0);
-        }
+        for (size_t k = 0; k < 4; ++k) CHECK(testing::opsa::bitwise_equal(runs[0][k], runs[1][k]));
     }
-    omp_set_num_threads(prev);
 }
 
 TEST_CASE("conv2d: bad shapes and arguments throw naming the shapes", "[nn][errors][opsb]") {
@@ -292,7 +286,7 @@ TEST_CASE("conv2d: forward throughput on [1,64,104,104] x [128,64,3,3]", "[.benc
     const auto t0 = std::chrono::steady_clock::now();
     for (int i = 0; i < iters; ++i) nn::conv2d(x, w, b, {1, 1}, {1, 1});
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::cout << "conv2d fwd [1,64,104,104]x[128,64,3,3] pad 1, " << omp_get_max_threads()
+    std::cout << "conv2d fwd [1,64,104,104]x[128,64,3,3] pad 1, " << num_threads()
               << " threads: " << 1e3 * s / iters << " ms/iter, " << flop * iters / s * 1e-9
               << " GFLOP/s\n";
     Tensor xg = x.clone(), wg = w.clone();

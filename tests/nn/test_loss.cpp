@@ -11,14 +11,11 @@
 
 using namespace g2l;
 using testing::opsa::f64;
+using testing::opsa::i32;
 using testing::opsa::require_close;
 using testing::opsa::values;
 
 namespace {
-
-Tensor i32(const std::vector<int32_t>& v, const Shape& s) {
-    return Tensor::from_vector<int32_t>(v, s);
-}
 
 Tensor req(Tensor t) {
     t.set_requires_grad();

@@ -1,14 +1,13 @@
 // SPDX-License-Identifier: MIT
 #include <catch2/catch.hpp>
-#include <omp.h>
 
 #include <cmath>
-#include <cstring>
 #include <limits>
 
 #include "core/rng.h"
 #include "gradcheck.h"
 #include "nn/ops/pool2d.h"
+#include "opsa_helpers.h"
 
 using namespace g2l;
 
@@ -124,28 +123,21 @@ TEST_CASE("pooling: analytic grads match finite differences", "[nn][grad][opsb]"
 }
 
 TEST_CASE("pooling: results are bitwise identical with 1 and 2 threads", "[nn][opsb]") {
-    const int prev = omp_get_max_threads();
-    std::vector<float> runs[2][3];
+    std::vector<Tensor> runs[2];
     for (int threads = 1; threads <= 2; ++threads) {
-        omp_set_num_threads(threads);
-        Rng rng(3);
-        Tensor x = Tensor::randn({3, 8, 17, 15}, rng);
-        x.set_requires_grad();
-        const Tensor y1 = nn::max_pool2d(x, {3, 3}, {2, 2}, {1, 1});
-        const Tensor y2 = nn::avg_pool2d(x, {3, 3}, {2, 2}, {1, 1}, false);
-        const Tensor dy = Tensor::randn(y1.shape(), rng);
-        y1.backward(dy);
-        y2.backward(dy);
-        runs[threads - 1][0] = y1.to_vector<float>();
-        runs[threads - 1][1] = y2.to_vector<float>();
-        runs[threads - 1][2] = x.grad().to_vector<float>();
+        testing::opsa::with_threads(threads, [&] {
+            Rng rng(3);
+            Tensor x = Tensor::randn({3, 8, 17, 15}, rng);
+            x.set_requires_grad();
+            const Tensor y1 = nn::max_pool2d(x, {3, 3}, {2, 2}, {1, 1});
+            const Tensor y2 = nn::avg_pool2d(x, {3, 3}, {2, 2}, {1, 1}, false);
+            const Tensor dy = Tensor::randn(y1.shape(), rng);
+            y1.backward(dy);
+            y2.backward(dy);
+            runs[threads - 1] = {y1, y2, x.grad()};
+        });
     }
-    omp_set_num_threads(prev);
-    for (size_t k = 0; k < 3; ++k) {
-        REQUIRE(runs[0][k].size() == runs[1][k].size());
-        CHECK(std::memcmp(runs[0][k].data(), runs[1][k].data(),
-                          runs[0][k].size() * sizeof(float)) == 0);
-    }
+    for (size_t k = 0; k < 3; ++k) CHECK(testing::opsa::bitwise_equal(runs[0][k], runs[1][k]));
 }
 
 TEST_CASE("pooling: bad shapes and arguments throw naming the shapes", "[nn][errors][opsb]") {

@@ -9,14 +9,11 @@
 
 using namespace g2l;
 using testing::opsa::f64;
+using testing::opsa::i32;
 using testing::opsa::require_close;
 using testing::opsa::values;
 
 namespace {
-
-Tensor i32(const std::vector<int32_t>& v, const Shape& s) {
-    return Tensor::from_vector<int32_t>(v, s);
-}
 
 Tensor randn_req(const Shape& s, uint64_t seed) {
     Rng rng(seed);

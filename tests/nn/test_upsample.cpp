@@ -1,12 +1,11 @@
 // SPDX-License-Identifier: MIT
 #include <catch2/catch.hpp>
-#include <omp.h>
 
-#include <cstring>
 
 #include "core/rng.h"
 #include "gradcheck.h"
 #include "nn/ops/upsample.h"
+#include "opsa_helpers.h"
 
 using namespace g2l;
 
@@ -84,27 +83,20 @@ TEST_CASE("upsampling: analytic grads match finite differences", "[nn][grad][ops
 }
 
 TEST_CASE("upsampling: results are bitwise identical with 1 and 2 threads", "[nn][opsb]") {
-    const int prev = omp_get_max_threads();
-    std::vector<float> runs[2][3];
+    std::vector<Tensor> runs[2];
     for (int threads = 1; threads <= 2; ++threads) {
-        omp_set_num_threads(threads);
-        Rng rng(4);
-        Tensor x = Tensor::randn({2, 8, 13, 11}, rng);
-        x.set_requires_grad();
-        const Tensor y1 = nn::upsample_nearest2d(x, 2);
-        const Tensor y2 = nn::upsample_bilinear2d(x, 26, 22);
-        y1.backward(Tensor::randn(y1.shape(), rng));
-        y2.backward(Tensor::randn(y2.shape(), rng));
-        runs[threads - 1][0] = y1.to_vector<float>();
-        runs[threads - 1][1] = y2.to_vector<float>();
-        runs[threads - 1][2] = x.grad().to_vector<float>();
+        testing::opsa::with_threads(threads, [&] {
+            Rng rng(4);
+            Tensor x = Tensor::randn({2, 8, 13, 11}, rng);
+            x.set_requires_grad();
+            const Tensor y1 = nn::upsample_nearest2d(x, 2);
+            const Tensor y2 = nn::upsample_bilinear2d(x, 26, 22);
+            y1.backward(Tensor::randn(y1.shape(), rng));
+            y2.backward(Tensor::randn(y2.shape(), rng));
+            runs[threads - 1] = {y1, y2, x.grad()};
+        });
     }
-    omp_set_num_threads(prev);
-    for (size_t k = 0; k < 3; ++k) {
-        REQUIRE(runs[0][k].size() == runs[1][k].size());
-        CHECK(std::memcmp(runs[0][k].data(), runs[1][k].data(),
-                          runs[0][k].size() * sizeof(float)) == 0);
-    }
+    for (size_t k = 0; k < 3; ++k) CHECK(testing::opsa::bitwise_equal(runs[0][k], runs[1][k]));
 }
 
 TEST_CASE("upsampling: bad shapes and arguments throw naming the shapes", "[nn][errors][opsb]") {

@@ -17,7 +17,7 @@ using namespace g2l::train;
 namespace {
 
 // Two samples of a 40 x 60 x 100 box surface patch, rotated and shifted, all points "object".
-std::vector<PoseSample> box_samples(const KeypointTable& kp, int n) {
+std::vector<PoseSample> box_samples(int n) {
     std::vector<PoseSample> out;
     Rng rng(11);
     for (int b = 0; b < 2; ++b) {
@@ -36,7 +36,6 @@ std::vector<PoseSample> box_samples(const KeypointTable& kp, int n) {
         s.num_object_points = n;
         out.push_back(s);
     }
-    (void)kp;
     return out;
 }
 
@@ -63,7 +62,7 @@ TEST_CASE("g2l_step: symmetric targets take the set nearest the prediction",
     nn::G2LNet net(c);
     net.eval();  // deterministic forwards: running BN statistics, no dropout
     const KeypointTable kp = box_keypoints();
-    const auto samples = box_samples(kp, 64);
+    const auto samples = box_samples(64);
 
     KeypointTable far = kp;  // a "symmetric" set 500 mm away: never the nearest
     for (auto& p : far[0]) p += Eigen::Vector3f(500, 0, 0);
@@ -108,7 +107,7 @@ TEST_CASE("g2l_step: bad symmetric keypoint tables throw naming the class", "[tr
     nn::G2LNet net(c);
     net.eval();
     const KeypointTable kp = box_keypoints();
-    const auto samples = box_samples(kp, 64);
+    const auto samples = box_samples(64);
     const SymmetricKeypoints empty;
     CHECK_THROWS_WITH(run(net, samples, kp, &empty),
                       Catch::Contains("no symmetric keypoint sets for class index 0"));
@@ -134,7 +133,7 @@ TEST_CASE("g2l_step: overfitting one fixed batch drives every loss down", "[trai
     ao.beta2 = 0.99;
     nn::Adam adam(net.param_groups(), ao);  // the official lr multipliers
     const KeypointTable kp = box_keypoints();
-    const auto samples = box_samples(kp, 128);
+    const auto samples = box_samples(128);
     StepLosses first, last;
     for (int it = 0; it < 200; ++it) {
         adam.zero_grad();

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <mutex>
 #include <sstream>
 
 #include "core/error.h"
@@ -66,6 +67,20 @@ int64_t count_and_box(int W, int H, Pred pred, geom::Box2i& box) {
     return n;
 }
 
+// Stable poses are computed once per mesh and process (a SceneGenerator is built per epoch).
+const std::pair<Eigen::Vector3d, std::vector<geom::StablePose>>& cached_stable_poses(
+    const geom::Mesh& mesh) {
+    static std::mutex mu;
+    static std::map<const geom::Mesh*, std::pair<Eigen::Vector3d, std::vector<geom::StablePose>>> cache;
+    std::lock_guard<std::mutex> lock(mu);
+    auto it = cache.find(&mesh);
+    if (it == cache.end()) {
+        const Eigen::Vector3d com = geom::centre_of_mass(mesh);
+        it = cache.emplace(&mesh, std::make_pair(com, geom::stable_poses(mesh, com))).first;
+    }
+    return it->second;
+}
+
 }  // namespace
 
 void validate(const SceneConfig& c, const std::string& where) {
@@ -96,6 +111,23 @@ void validate(const SceneConfig& c, const std::string& where) {
     G2L_CHECK(c.plane_tilt_max >= 0 && c.plane_tilt_max < 90, where,
               ": plane_tilt_max must be in [0, 90) degrees, got ", c.plane_tilt_max);
     validate(c.noise, where + ": noise");
+    G2L_CHECK(c.pose_mode == "random" || c.pose_mode == "resting", where,
+              ": pose_mode must be \"random\" or \"resting\", got \"", c.pose_mode, "\"");
+    G2L_CHECK(c.camera_distance[0] > 0 && c.camera_distance[0] <= c.camera_distance[1], where,
+              ": camera_distance must be [min, max] with 0 < min <= max (mm), got [",
+              c.camera_distance[0], ", ", c.camera_distance[1], "]");
+    G2L_CHECK(c.camera_elevation[0] > 0 && c.camera_elevation[0] <= c.camera_elevation[1] &&
+                  c.camera_elevation[1] <= 90,
+              where, ": camera_elevation must be [min, max] with 0 < min <= max <= 90 degrees, got [",
+              c.camera_elevation[0], ", ", c.camera_elevation[1], "]");
+    G2L_CHECK(c.camera_roll_max >= 0 && c.camera_roll_max <= 180, where,
+              ": camera_roll_max must be in [0, 180] degrees, got ", c.camera_roll_max);
+    G2L_CHECK(c.table_spread_mm >= 0 && std::isfinite(c.table_spread_mm), where,
+              ": table_spread_mm must be >= 0, got ", c.table_spread_mm);
+    G2L_CHECK(c.look_at_jitter_mm >= 0 && std::isfinite(c.look_at_jitter_mm), where,
+              ": look_at_jitter_mm must be >= 0, got ", c.look_at_jitter_mm);
+    G2L_CHECK(c.table_size_mm > 0 && std::isfinite(c.table_size_mm), where,
+              ": table_size_mm must be > 0, got ", c.table_size_mm);
 }
 
 SceneGenerator::SceneGenerator(const SceneConfig& cfg, std::vector<SceneModel> models)
@@ -118,7 +150,13 @@ SceneGenerator::SceneGenerator(const SceneConfig& cfg, std::vector<SceneModel> m
                                  .rowwise()
                                  .squaredNorm()
                                  .maxCoeff()));
-        models_.push_back({m.obj_id, m.mesh, c, std::max(r, 1e-3)});
+        ModelGeom g{m.obj_id, m.mesh, c, std::max(r, 1e-3), c, {}};
+        if (cfg_.pose_mode == "resting") {
+            const auto& sp = cached_stable_poses(*m.mesh);
+            g.com = sp.first;
+            g.stable = sp.second;
+        }
+        models_.push_back(std::move(g));
     }
     targets_ = cfg_.target_obj_ids.empty() ? ids : cfg_.target_obj_ids;
     for (const int id : targets_) {
@@ -182,7 +220,9 @@ void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads
     // bounding spheres keep apart by `separation`.
     objects_.clear();
     std::vector<std::pair<Eigen::Vector3d, double>> placed;
-    for (size_t k = 0; k < chosen.size(); ++k) {
+    const bool resting = cfg_.pose_mode == "resting";
+    if (resting) placed = place_resting(chosen, n_targets, rng);
+    for (size_t k = 0; k < chosen.size() && !resting; ++k) {
         const ModelGeom& m = model(chosen[k]);
         Eigen::Vector3d p;
         for (int attempt = 0; attempt < 100; ++attempt) {
@@ -208,7 +248,7 @@ void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads
     }
 
     // Support plane: normal tilted from -z, placed behind every bounding sphere.
-    const bool plane = rng.uniform() < cfg_.support_plane_prob && !placed.empty();
+    const bool plane = !resting && rng.uniform() < cfg_.support_plane_prob && !placed.empty();
     if (plane) {
         const double tilt = rng.uniform(0, cfg_.plane_tilt_max) * kDeg;
         const double az = rng.uniform(0, 360) * kDeg;
@@ -308,6 +348,91 @@ void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads
         gt.visib_fract =
             gt.px_count_all > 0 ? double(gt.px_count_visib) / double(gt.px_count_all) : 0.0;
     }
+}
+
+std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_resting(
+    const std::vector<int>& chosen, int n_targets, Rng& rng) {
+    // World frame: the table is z = 0, z points up.
+    std::vector<std::pair<Eigen::Vector3d, double>> world;  // centre (world) and radius
+    std::vector<geom::Pose> pose_w;
+    for (size_t k = 0; k < chosen.size(); ++k) {
+        const ModelGeom& m = model(chosen[k]);
+        // A stable pose drawn with its probability, then a random yaw.
+        double u = rng.uniform(), acc = 0;
+        size_t sp = m.stable.size() - 1;
+        for (size_t i = 0; i < m.stable.size(); ++i) {
+            acc += m.stable[i].probability;
+            if (u < acc) {
+                sp = i;
+                break;
+            }
+        }
+        const double yaw = rng.uniform(0, 360) * kDeg;
+        const Eigen::Matrix3d R = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+                                  geom::resting_rotation(m.stable[sp]);
+        Eigen::Vector2d xy = Eigen::Vector2d::Zero();
+        for (int attempt = 0; attempt < 100; ++attempt) {
+            const double rad = cfg_.table_spread_mm * std::sqrt(rng.uniform());
+            const double ang = rng.uniform(0, 360) * kDeg;
+            xy = Eigen::Vector2d(rad * std::cos(ang), rad * std::sin(ang));
+            bool ok = true;
+            for (const auto& [q, r] : world)
+                ok = ok && (xy - q.head<2>()).norm() >= cfg_.separation * (r + m.radius);
+            if (ok) break;
+        }
+        geom::Pose pw;
+        pw.R = R;
+        pw.t = Eigen::Vector3d(xy.x(), xy.y(), m.stable[sp].height) - R * m.com;
+        pose_w.push_back(pw);
+        world.emplace_back(pw.R * m.center + pw.t, m.radius);
+    }
+    // Camera on the upper hemisphere around the look-at point, with a small roll.
+    Eigen::Vector3d look = Eigen::Vector3d::Zero();
+    for (int k = 0; k < n_targets; ++k) look += world[size_t(k)].first;
+    look /= double(std::max(1, n_targets));
+    for (int a = 0; a < 3; ++a) look[a] += rng.normal() * cfg_.look_at_jitter_mm;
+    look.z() = std::max(0.0, look.z());
+    const double dist = rng.uniform(cfg_.camera_distance[0], cfg_.camera_distance[1]);
+    const double el = rng.uniform(cfg_.camera_elevation[0], cfg_.camera_elevation[1]) * kDeg;
+    const double az = rng.uniform(0, 360) * kDeg;
+    const double roll = rng.uniform(-cfg_.camera_roll_max, cfg_.camera_roll_max) * kDeg;
+    const Eigen::Vector3d C =
+        look + dist * Eigen::Vector3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+    const Eigen::Vector3d zc = (look - C).normalized();
+    const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+    Eigen::Vector3d yc = -(up - up.dot(zc) * zc);
+    yc = yc.norm() > 1e-9 ? yc.normalized() : Eigen::Vector3d::UnitY();
+    Eigen::Vector3d xc = yc.cross(zc);
+    const Eigen::Vector3d xr = std::cos(roll) * xc + std::sin(roll) * yc;
+    const Eigen::Vector3d yr = -std::sin(roll) * xc + std::cos(roll) * yc;
+    Eigen::Matrix3d Rwc;
+    Rwc.col(0) = xr;
+    Rwc.col(1) = yr;
+    Rwc.col(2) = zc;
+    const Eigen::Matrix3d Rcw = Rwc.transpose();
+    std::vector<std::pair<Eigen::Vector3d, double>> placed;
+    for (size_t k = 0; k < chosen.size(); ++k) {
+        const ModelGeom& m = model(chosen[k]);
+        RenderObject obj;
+        obj.mesh = m.mesh;
+        obj.pose.R = Rcw * pose_w[k].R;
+        obj.pose.t = Rcw * (pose_w[k].t - C);
+        obj.instance_id = k < size_t(n_targets) ? int32_t(k + 1) : 0;
+        obj.default_color = cfg_.object_color;
+        objects_.push_back(obj);
+        placed.emplace_back(Rcw * (world[k].first - C), m.radius);
+    }
+    // The table: a square in z = 0 centred under the look-at point, normal towards the camera.
+    RenderObject table;
+    table.pose.R = Rcw;
+    table.pose.t = Rcw * (Eigen::Vector3d(look.x(), look.y(), 0.0) - C);
+    plane_.vertices = plane_unit_ * float(cfg_.table_size_mm);
+    table.mesh = &plane_;
+    for (int c = 0; c < 3; ++c)
+        table.default_color[size_t(c)] =
+            cfg_.random_background ? uint8_t(rng.randint(40, 230)) : uint8_t(128);
+    objects_.push_back(table);
+    return placed;
 }
 
 }  // namespace g2l::data

@@ -12,6 +12,8 @@
 
 #include "data/render.h"
 #include "data/sensor_noise.h"
+#include "core/rng.h"
+#include "geometry/stable_poses.h"
 #include "geometry/types.h"
 
 namespace g2l::data {
@@ -45,6 +47,22 @@ struct SceneConfig {
     std::array<uint8_t, 3> object_color{{170, 170, 170}};  ///< for meshes without colours
     SensorNoiseConfig noise;
     uint64_t seed = 0;
+
+    /// "random": the poses above (centres in the view frustum, random or Euler rotations,
+    /// optional tilted plane). "resting": the real-world prior (spec §14) — every object lies
+    /// in one of its stable poses (geometry/stable_poses.h, drawn with their probabilities) with
+    /// a random yaw on a table, and the camera sits on the upper hemisphere around them:
+    /// distance camera_distance, elevation camera_elevation above the table, any azimuth, roll
+    /// within +-camera_roll_max; the table (a table_size_mm square, always rendered, with sensor
+    /// noise) fills the view around the objects. z_min/z_max, xy_frac, full_rotation, euler_*,
+    /// support_plane_prob and plane_tilt_max do not apply in this mode.
+    std::string pose_mode = "random";
+    std::array<double, 2> camera_distance{{500, 1200}};  ///< camera to look-at point (mm)
+    std::array<double, 2> camera_elevation{{15, 80}};    ///< degrees above the table plane
+    double camera_roll_max = 10;     ///< in-plane roll, degrees
+    double table_spread_mm = 200;    ///< objects' centres within this radius on the table
+    double look_at_jitter_mm = 50;   ///< look-at point: objects' mean + N(0, this) per axis
+    double table_size_mm = 3000;     ///< side of the square table
 };
 
 /// Throws g2l::Error naming the field and value for any invalid setting (`where` prefixes the
@@ -111,7 +129,13 @@ private:
         const geom::Mesh* mesh;
         Eigen::Vector3d center;  ///< bounding-box centre, model frame
         double radius;           ///< max distance of a vertex from center
+        Eigen::Vector3d com;     ///< centre of mass (resting mode)
+        std::vector<geom::StablePose> stable;  ///< stable poses (resting mode)
     };
+    /// Places objects_ (and the table) for a "resting" frame; returns each object's centre
+    /// and radius in camera coordinates.
+    std::vector<std::pair<Eigen::Vector3d, double>> place_resting(
+        const std::vector<int>& chosen, int n_targets, Rng& rng);
     const ModelGeom& model(int obj_id) const;
 
     SceneConfig cfg_;

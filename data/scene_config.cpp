@@ -66,6 +66,22 @@ Reader as_array3(std::array<double, 3>& dst) {
         }
     };
 }
+Reader as_array2(std::array<double, 2>& dst) {
+    return [&dst](const json& v, const std::string& p) {
+        G2L_CHECK(v.is_array() && v.size() == 2, p, " must be an array of 2 numbers [min, max], got ",
+                  v.dump());
+        for (size_t k = 0; k < 2; ++k) {
+            G2L_CHECK(v[k].is_number(), p, "[", k, "] must be a number, got ", v[k].dump());
+            dst[k] = v[k].get<double>();
+        }
+    };
+}
+Reader as_string(std::string& dst) {
+    return [&dst](const json& v, const std::string& p) {
+        G2L_CHECK(v.is_string(), p, " must be a string, got ", v.dump());
+        dst = v.get<std::string>();
+    };
+}
 Reader as_rgb(std::array<uint8_t, 3>& dst) {
     return [&dst](const json& v, const std::string& p) {
         G2L_CHECK(v.is_array() && v.size() == 3, p, " must be [r, g, b], got ", v.dump());
@@ -131,6 +147,13 @@ SceneConfig parse_scene_config(const std::string& json_text, const std::string& 
         {"random_background", as_bool(c.random_background)},
         {"random_light", as_bool(c.random_light)},
         {"object_color", as_rgb(c.object_color)},
+        {"pose_mode", as_string(c.pose_mode)},
+        {"camera_distance", as_array2(c.camera_distance)},
+        {"camera_elevation", as_array2(c.camera_elevation)},
+        {"camera_roll_max", as_double(c.camera_roll_max)},
+        {"table_spread_mm", as_double(c.table_spread_mm)},
+        {"look_at_jitter_mm", as_double(c.look_at_jitter_mm)},
+        {"table_size_mm", as_double(c.table_size_mm)},
         {"seed",
          [&](const json& v, const std::string& p) {
              G2L_CHECK(v.is_number_unsigned() || (v.is_number_integer() && v.get<int64_t>() >= 0),
@@ -190,6 +213,13 @@ std::string scene_config_to_json(const SceneConfig& c) {
     j["random_background"] = c.random_background;
     j["random_light"] = c.random_light;
     j["object_color"] = {c.object_color[0], c.object_color[1], c.object_color[2]};
+    j["pose_mode"] = c.pose_mode;
+    j["camera_distance"] = c.camera_distance;
+    j["camera_elevation"] = c.camera_elevation;
+    j["camera_roll_max"] = c.camera_roll_max;
+    j["table_spread_mm"] = c.table_spread_mm;
+    j["look_at_jitter_mm"] = c.look_at_jitter_mm;
+    j["table_size_mm"] = c.table_size_mm;
     j["seed"] = c.seed;
     return j.dump(2);
 }

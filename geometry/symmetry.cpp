@@ -3,8 +3,10 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <algorithm>
 
 #include "core/error.h"
+#include "geometry/metrics.h"
 
 namespace g2l::geom {
 
@@ -90,6 +92,28 @@ std::vector<SymmetryTransform> geometric_symmetries(const ModelKdTree& tree, con
             out.push_back(s);
     }
     return out;
+}
+
+Pose compose(const Pose& gt, const SymmetryTransform& s) {
+    Pose g;
+    g.R = gt.R * s.R.cast<double>();
+    g.t = gt.R * s.t.cast<double>() + gt.t;
+    return g;
+}
+
+double add_sym(const Pose& est, const Pose& gt, const Points& model_pts,
+               const std::vector<SymmetryTransform>& syms) {
+    double best = add(est, gt, model_pts);
+    for (const auto& s : syms) best = std::min(best, add(est, compose(gt, s), model_pts));
+    return best;
+}
+
+double rotation_error_sym_deg(const Eigen::Matrix3d& R_est, const Eigen::Matrix3d& R_gt,
+                              const std::vector<SymmetryTransform>& syms) {
+    double best = rotation_error_deg(R_est, R_gt);
+    for (const auto& s : syms)
+        best = std::min(best, rotation_error_deg(R_est, R_gt * s.R.cast<double>()));
+    return best;
 }
 
 }  // namespace g2l::geom

@@ -56,4 +56,17 @@ struct SymmetryScore {
 SymmetryScore symmetry_score(const ModelKdTree& tree, const SymmetryTransform& s,
                              int max_points = 2000);
 
+/// The GT pose composed with a symmetry S (p -> R_gt (R_s p + t_s) + t_gt): as right as gt.
+Pose compose(const Pose& gt, const SymmetryTransform& s);
+
+/// ADD modulo the symmetries (BOP's MSSD idea with the mean instead of the max): the minimum
+/// over S in `syms` of ADD(est, compose(gt, S)); an empty list is plain ADD. Throws like add().
+double add_sym(const Pose& est, const Pose& gt, const Points& model_pts,
+               const std::vector<SymmetryTransform>& syms);
+
+/// Rotation error (degrees) modulo the symmetries: min over S of the angle between R_est and
+/// R_gt R_s; an empty list is the plain error.
+double rotation_error_sym_deg(const Eigen::Matrix3d& R_est, const Eigen::Matrix3d& R_gt,
+                              const std::vector<SymmetryTransform>& syms);
+
 }  // namespace g2l::geom

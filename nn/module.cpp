@@ -109,4 +109,9 @@ Tensor uniform_init(const Shape& shape, int64_t fan_in, Rng& rng, DType dtype) {
     return Tensor::rand(shape, rng, -bound, bound, dtype);
 }
 
+void Module::apply(const std::function<void(Module&)>& fn) {
+    fn(*this);
+    for (auto& [name, child] : children_) child->apply(fn);
+}
+
 }  // namespace g2l::nn

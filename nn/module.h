@@ -4,6 +4,7 @@
 // module type (no virtual forward: signatures differ).
 #pragma once
 
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -39,6 +40,8 @@ public:
     int64_t num_parameters() const;
     /// Clears the gradients of all parameters.
     void zero_grad();
+    /// Calls fn on this module and then on every descendant, depth first.
+    void apply(const std::function<void(Module&)>& fn);
 
 protected:
     /// Registers a leaf parameter (requires_grad is set) and returns the same handle.

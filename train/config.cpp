@@ -229,6 +229,8 @@ const Choices kSourceTypes{"bop", "synthetic"};
 const Choices kCrops{"sphere", "frustum", "slab"};
 const Choices kKeypoints{"bbx8", "fps4", "fps8", "fps12"};
 const Choices kTLosses{"mse", "smooth_l1"};
+const Choices kRotUnits{"kp_rms", "mm"};
+const Choices kRotCentres{"gt", "pred"};
 const Choices kSchedules{"step", "official", "constant"};
 
 template <class IO>
@@ -291,6 +293,7 @@ void visit_config(IO& io, TrainConfig& c) {
         m.num("width", c.model.width);
         m.num("dropout", c.model.dropout);
         m.num("out_scale_mm", c.model.out_scale_mm);
+        m.choice("rot_unit", c.model.rot_unit, kRotUnits);
     });
     io.object("loss", [&](IO& l) {
         l.num("seg", c.loss.seg);
@@ -300,6 +303,10 @@ void visit_config(IO& io, TrainConfig& c) {
         l.num("res", c.loss.res);
         l.choice("t_loss", c.loss.t_loss, kTLosses);
         l.boolean("symmetric_targets", c.loss.symmetric_targets);
+        l.choice("rot_centre", c.loss.rot_centre, kRotCentres);
+        l.num("rot_centre_noise_mm", c.loss.rot_centre_noise_mm);
+        l.integer("rot_gt_points_epochs", c.loss.rot_gt_points_epochs);
+        l.integer("rot_only_epochs", c.loss.rot_only_epochs);
     });
     io.object("optim", [&](IO& o) {
         OptimConfig& p = c.optim;
@@ -650,6 +657,12 @@ void validate(const TrainConfig& c, const std::string& where) {
               t.max_val_samples);
     G2L_CHECK(finite_in(t.time_limit_min, 0, 1e9), where,
               ": 'train.time_limit_min' must be >= 0 (0 = none), got ", t.time_limit_min);
+    G2L_CHECK(std::isfinite(c.loss.rot_centre_noise_mm) && c.loss.rot_centre_noise_mm >= 0, where,
+              ": 'loss.rot_centre_noise_mm' must be >= 0, got ", c.loss.rot_centre_noise_mm);
+    G2L_CHECK(c.loss.rot_gt_points_epochs >= 0, where,
+              ": 'loss.rot_gt_points_epochs' must be >= 0, got ", c.loss.rot_gt_points_epochs);
+    G2L_CHECK(c.loss.rot_only_epochs >= 0 && c.loss.rot_only_epochs < c.train.epochs, where,
+              ": 'loss.rot_only_epochs' must be in [0, train.epochs), got ", c.loss.rot_only_epochs);
     G2L_CHECK(t.log_every > 0, where, ": 'train.log_every' must be > 0, got ", t.log_every);
 }
 

@@ -72,6 +72,7 @@ struct ModelConfig {
     double width = 1.0;              ///< channel multiplier (> 0)
     double dropout = 0.2;            ///< dropout before the last layer of each head
     double out_scale_mm = 1.0;       ///< unit of the mm-valued outputs (nn::G2LConfig)
+    std::string rot_unit = "kp_rms"; ///< rotation branch unit: "kp_rms" or "mm" (official)
 };
 
 /// Loss weights (spec §6: 10 L_seg + L_T/10 + 10 L_vec + L_kp/100 + L_res/100).
@@ -81,6 +82,17 @@ struct LossConfig {
     /// Rotation targets: the geometric symmetry of the model nearest the prediction (min over
     /// symmetries, geometry/symmetry.h) instead of the single GT pose. Off = paper.
     bool symmetric_targets = false;
+    /// Centre of the rotation input in training: "gt" (GT translation + rot_centre_noise_mm
+    /// Gaussian noise per axis) or "pred" (the T-net's prediction, as at test time).
+    std::string rot_centre = "gt";
+    double rot_centre_noise_mm = 0;
+    /// For this many first epochs the rotation blocks see the ground-truth object points
+    /// instead of the seg net's (they learn on clean input while segmentation is poor).
+    int rot_gt_points_epochs = 0;
+    /// For this many first epochs only the rotation blocks train (no seg / T-net pass; GT object
+    /// points centred on the GT translation + rot_centre_noise_mm): a fast warm-up, ~4x the
+    /// samples per second of the joint step.
+    int rot_only_epochs = 0;
 };
 
 /// Per-sub-network learning-rate multipliers (official code: seg 1, tnet 10, evf 1, rot 30,

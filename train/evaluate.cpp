@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "train/evaluate.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -10,7 +11,9 @@
 #include "core/autograd.h"
 #include "geometry/camera.h"
 #include "geometry/crop.h"
+#include "geometry/labels.h"
 #include "geometry/metrics.h"
+#include "geometry/symmetry.h"
 #include "nn/models/g2l_pose.h"
 
 namespace g2l::train {
@@ -67,8 +70,22 @@ geom::Box2i clip(geom::Box2i b, int w, int h) {
 
 struct Acc {
     std::vector<double> adds_m, add_m;
-    int count = 0, misses = 0, correct = 0, found = 0;
+    int count = 0, misses = 0, correct = 0, found = 0, correct_adds = 0, correct_sym = 0;
     double rot = 0, trans = 0;
+    std::vector<double> rot_sym, trans_all;
+};
+
+double median(std::vector<double> v) {
+    if (v.empty()) return 0;
+    std::sort(v.begin(), v.end());
+    const size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// Model points and geometric symmetries of one object (computed once per evaluation).
+struct ObjGeom {
+    geom::Points pts;
+    std::vector<geom::SymmetryTransform> syms;
 };
 
 }  // namespace
@@ -83,7 +100,7 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
     net.eval();
     autograd::NoGradGuard no_grad;
     std::map<int, Acc> acc;
-    std::map<int, geom::Points> model_pts;
+    std::map<int, ObjGeom> model_geom;
     EvalReport rep;
     double t_crop = 0, t_seg = 0, t_t = 0, t_rot = 0;
     for (const data::Frame& f : ds.frames()) {
@@ -98,13 +115,16 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
             if (!class_of.count(inst.obj_id) || !visible_enough(inst, opt.min_visib_fract)) continue;
             if (opt.max_instances > 0 && rep.instances >= opt.max_instances) break;
             const data::ObjectModel& om = ds.model(inst.obj_id);
-            if (!model_pts.count(inst.obj_id)) {
+            if (!model_geom.count(inst.obj_id)) {
                 const geom::Mesh& mesh = ds.load_model_mesh(inst.obj_id);
                 const int64_t nv = mesh.vertices.rows();
                 const int64_t keep = opt.max_model_points > 0 ? std::min<int64_t>(nv, opt.max_model_points) : nv;
                 geom::Points p(keep, 3);
                 for (int64_t i = 0; i < keep; ++i) p.row(i) = mesh.vertices.row(i * nv / keep);
-                model_pts[inst.obj_id] = p;
+                ObjGeom g;
+                g.pts = p;
+                g.syms = geom::geometric_symmetries(geom::ModelKdTree::from_mesh(mesh), om.info);
+                model_geom[inst.obj_id] = std::move(g);
             }
             Acc& a = acc[inst.obj_id];
             a.count++;
@@ -133,17 +153,26 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
             if (have)
                 est = nn::estimate_pose(net, crop, class_of.at(inst.obj_id),
                                         keypoints[size_t(class_of.at(inst.obj_id))],
-                                        opt.max_object_points);
+                                        opt.max_object_points, opt.crop_points);
             t_seg += est.ms_seg; t_t += est.ms_t; t_rot += est.ms_rot;
             if (!est.ok) {
                 a.misses++;
+                a.rot_sym.push_back(180.0);
                 a.adds_m.push_back(std::numeric_limits<double>::infinity());
                 a.add_m.push_back(std::numeric_limits<double>::infinity());
                 continue;
             }
-            const geom::Points& mp = model_pts[inst.obj_id];
+            const ObjGeom& og = model_geom[inst.obj_id];
+            const geom::Points& mp = og.pts;
             const double e_add = geom::add(est.pose, inst.pose, mp);
             const double e_adds = geom::adds(est.pose, inst.pose, mp);
+            // Modulo the geometric symmetries S: the GT pose composed with S is as right.
+            const double e_sym = geom::add_sym(est.pose, inst.pose, mp, og.syms);
+            const double r_sym = geom::rotation_error_sym_deg(est.pose.R, inst.pose.R, og.syms);
+            a.correct_adds += geom::correct_at(e_adds, om.info.diameter);
+            a.correct_sym += geom::correct_at(e_sym, om.info.diameter);
+            a.rot_sym.push_back(r_sym);
+            a.trans_all.push_back(geom::translation_error(est.pose.t, inst.pose.t));
             a.add_m.push_back(e_add / 1000.0);
             a.adds_m.push_back(e_adds / 1000.0);
             a.correct += geom::correct_at(om.info.symmetric ? e_adds : e_add, om.info.diameter);
@@ -165,6 +194,11 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
         s.auc_add = geom::vocap_auc(a.add_m);
         s.mean_rot_err_deg = a.found ? a.rot / a.found : 0;
         s.mean_trans_err_mm = a.found ? a.trans / a.found : 0;
+        s.acc_adds_all_10 = a.count ? 100.0 * a.correct_adds / a.count : 0;
+        s.acc_addsym_10 = a.count ? 100.0 * a.correct_sym / a.count : 0;
+        s.rot_err_sym_deg_median = median(a.rot_sym);
+        s.median_trans_err_mm = median(a.trans_all);
+        s.num_symmetries = int(std::max<size_t>(1, model_geom[id].syms.size()));
         rep.objects.push_back(s);
         all.adds_m.insert(all.adds_m.end(), a.adds_m.begin(), a.adds_m.end());
         all.add_m.insert(all.add_m.end(), a.add_m.begin(), a.add_m.end());
@@ -179,6 +213,10 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
         avg.acc_add_s_10 += s.acc_add_s_10 / double(rep.objects.size());
         avg.auc_adds += s.auc_adds / double(rep.objects.size());
         avg.auc_add += s.auc_add / double(rep.objects.size());
+        avg.acc_adds_all_10 += s.acc_adds_all_10 / double(rep.objects.size());
+        avg.acc_addsym_10 += s.acc_addsym_10 / double(rep.objects.size());
+        avg.rot_err_sym_deg_median += s.rot_err_sym_deg_median / double(rep.objects.size());
+        avg.median_trans_err_mm += s.median_trans_err_mm / double(rep.objects.size());
     }
     avg.mean_rot_err_deg = all.found ? all.rot / all.found : 0;
     avg.mean_trans_err_mm = all.found ? all.trans / all.found : 0;
@@ -191,13 +229,16 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
 }
 
 std::string report_markdown(const EvalReport& r) {
-    std::string s = "| object | n | miss | ADD(-S) acc 0.1d (%) | ADD-S AUC | ADD AUC | rot err (deg) | trans err (mm) |\n"
-                    "|---|---|---|---|---|---|---|---|\n";
+    std::string s = "| object | n | miss | ADD(-S) acc 0.1d (%) | ADD-S acc 0.1d (%) | ADD-sym acc 0.1d (%) | "
+                    "rot err sym median (deg) | ADD-S AUC | ADD AUC | rot err (deg) | trans err (mm) | trans err median (mm) |\n"
+                    "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     char line[512];
     auto row = [&](const ObjectScores& o, const std::string& name) {
-        std::snprintf(line, sizeof line, "| %s | %d | %d | %.1f | %.1f | %.1f | %.2f | %.1f |\n",
-                      name.c_str(), o.count, o.misses, o.acc_add_s_10, o.auc_adds, o.auc_add,
-                      o.mean_rot_err_deg, o.mean_trans_err_mm);
+        std::snprintf(line, sizeof line,
+                      "| %s | %d | %d | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.2f | %.1f | %.1f |\n",
+                      name.c_str(), o.count, o.misses, o.acc_add_s_10, o.acc_adds_all_10,
+                      o.acc_addsym_10, o.rot_err_sym_deg_median, o.auc_adds, o.auc_add,
+                      o.mean_rot_err_deg, o.mean_trans_err_mm, o.median_trans_err_mm);
         s += line;
     };
     for (const auto& o : r.objects)
@@ -218,7 +259,12 @@ std::string report_json(const EvalReport& r) {
                               {"count", o.count}, {"misses", o.misses},
                               {"acc_adds_10", o.acc_add_s_10}, {"auc_adds", o.auc_adds},
                               {"auc_add", o.auc_add}, {"rot_err_deg", o.mean_rot_err_deg},
-                              {"trans_err_mm", o.mean_trans_err_mm}};
+                              {"trans_err_mm", o.mean_trans_err_mm},
+                              {"acc_adds_all_10", o.acc_adds_all_10},
+                              {"acc_addsym_10", o.acc_addsym_10},
+                              {"rot_err_sym_deg_median", o.rot_err_sym_deg_median},
+                              {"trans_err_mm_median", o.median_trans_err_mm},
+                              {"num_symmetries", o.num_symmetries}};
     };
     for (const auto& o : r.objects) j["objects"].push_back(obj(o));
     j["average"] = obj(r.average);

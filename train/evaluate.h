@@ -17,7 +17,8 @@ struct EvalOptions {
     double radius_scale = 1.0;       ///< sphere radius = radius_scale x diameter
     double min_visib_fract = 0.0;    ///< instances below are skipped (not counted)
     int64_t max_instances = 0;       ///< 0 = all
-    int max_object_points = 2000;    ///< cap for the T / rotation nets
+    int max_object_points = 2000;    ///< object points fed to the T / rotation nets
+    int crop_points = 0;             ///< seg-net input points (training's sampling.points; 0 = all)
     int max_model_points = 2000;     ///< model vertices used by ADD / ADD-S (stride subsample)
 };
 
@@ -32,6 +33,15 @@ struct ObjectScores {
     double auc_adds = 0;       ///< ADD-S AUC up to 10 cm (YCB-Video toolbox)
     double auc_add = 0;        ///< ADD AUC up to 10 cm
     double mean_rot_err_deg = 0, mean_trans_err_mm = 0;  ///< over found poses
+    /// ADD-S accuracy at 10% of the diameter for every object, symmetric or not (%).
+    double acc_adds_all_10 = 0;
+    /// ADD taken as the minimum over the mesh's geometric symmetries (geometry/symmetry.h;
+    /// BOP's MSSD idea: what depth alone can tell) at 10% of the diameter (%).
+    double acc_addsym_10 = 0;
+    /// Median rotation error modulo those symmetries (degrees; misses count as 180).
+    double rot_err_sym_deg_median = 0;
+    double median_trans_err_mm = 0;  ///< median translation error over found poses
+    int num_symmetries = 1;          ///< geometric symmetries of the mesh (identity included)
 };
 
 struct EvalReport {

@@ -62,6 +62,8 @@ int main(int argc, char** argv) {
             g2l::train::EvalOptions eo;
             eo.crop = m.crop;
             eo.radius_scale = m.radius_scale;
+            eo.crop_points = m.points;
+            eo.max_object_points = m.seg_points;
             eo.max_instances = max_instances;
             eo.min_visib_fract = min_visib;
             const auto r = g2l::train::evaluate_gt_boxes(*m.net, sets_to_eval[i].second, m.class_of,

@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "train/config.h"
+#include "train/model_io.h"
 #include "train/trainer.h"
 
 int main(int argc, char** argv) {
@@ -14,6 +15,7 @@ int main(int argc, char** argv) {
     std::vector<std::string> sets;
     int64_t max_steps = 0;
     bool quiet = false;
+    std::vector<std::string> export_args;
     app.add_option("--config", config, "JSON config (see configs/ and docs/config.md)");
     app.add_option("--set", sets, "override a key, e.g. --set optim.lr=5e-4 --set "
                                   "data.train.0.frames=100 (repeatable)");
@@ -23,7 +25,22 @@ int main(int argc, char** argv) {
                                              "steps in total (0 = train to the end)")
         ->check(CLI::NonNegativeNumber);
     app.add_flag("--quiet", quiet, "no progress output");
+    app.add_option("--export", export_args,
+                   "CHECKPOINT OUT: write an inference export of a training checkpoint (weights, "
+                   "model config, object ids, keypoints; no optimizer state) and exit")
+        ->expected(2);
     CLI11_PARSE(app, argc, argv);
+    if (!export_args.empty()) {
+        try {
+            const int64_t bytes = g2l::train::export_model(export_args[0], export_args[1]);
+            std::printf("g2l_train: exported %s -> %s (%.1f MB)\n", export_args[0].c_str(),
+                        export_args[1].c_str(), double(bytes) / 1e6);
+            return 0;
+        } catch (const std::exception& e) {
+            std::fprintf(stderr, "g2l_train: error: %s\n", e.what());
+            return 1;
+        }
+    }
     if (config.empty() && resume.empty()) {
         std::fprintf(stderr, "g2l_train: give --config FILE (or --resume RUN_DIR)\n%s",
                      app.help().c_str());
@@ -37,8 +54,8 @@ int main(int argc, char** argv) {
         opt.max_steps = max_steps;
         opt.progress = !quiet;
         const auto s = g2l::train::run_training(cfg, opt);
-        std::printf("g2l_train: %s after %lld steps (%d epochs), %.2f samples/s; best val ADD-S "
-                    "AUC %s; run dir %s\n",
+        std::printf("g2l_train: %s after %lld steps (%d epochs), %.2f samples/s; best val ADD-sym acc@0.1d "
+                    "%s; run dir %s\n",
                     s.stopped_early ? "stopped" : "finished", (long long)s.steps, s.epochs_done,
                     s.samples_per_s, s.best_val >= 0 ? std::to_string(s.best_val).c_str() : "n/a",
                     s.run_dir.c_str());

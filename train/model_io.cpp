@@ -21,6 +21,7 @@ nn::G2LConfig model_config(const TrainConfig& cfg, int num_keypoints) {
     mc.dropout = cfg.model.dropout;
     mc.seed = cfg.seed;
     mc.out_scale_mm = cfg.model.out_scale_mm;
+    mc.rot_unit = cfg.model.rot_unit;
     return mc;
 }
 
@@ -29,7 +30,8 @@ namespace {
 json model_json(const nn::G2LConfig& c) {
     return {{"num_classes", c.num_classes}, {"num_keypoints", c.num_keypoints}, {"evf", c.evf},
             {"rre", c.rre}, {"width", c.width}, {"dropout", c.dropout}, {"seed", c.seed},
-            {"rre_dropout", c.rre_dropout}, {"out_scale_mm", c.out_scale_mm}};
+            {"rre_dropout", c.rre_dropout}, {"out_scale_mm", c.out_scale_mm},
+            {"rot_unit", c.rot_unit}};
 }
 
 // The inverse of model_json. Keys added after the first checkpoints default to the behaviour
@@ -45,6 +47,7 @@ nn::G2LConfig model_from_json(const json& mj) {
     c.seed = mj.at("seed");
     c.rre_dropout = mj.at("rre_dropout");
     c.out_scale_mm = mj.value("out_scale_mm", 1.0);
+    c.rot_unit = mj.value("rot_unit", std::string("mm"));  // added 2026-12-01
     return c;
 }
 
@@ -85,7 +88,8 @@ void save_training_checkpoint(const std::string& path, const nn::G2LNet& net,
     }
     meta["classes"] = ids;
     meta["keypoints"] = kps;
-    meta["sampling"] = {{"crop", cfg.sampling.crop}, {"radius_scale", cfg.sampling.radius_scale}};
+    meta["sampling"] = {{"crop", cfg.sampling.crop}, {"radius_scale", cfg.sampling.radius_scale},
+                        {"points", cfg.sampling.points}, {"seg_points", cfg.sampling.seg_points}};
     meta["resume"] = {{"epoch", st.epoch}, {"pos", st.pos}, {"global_step", st.global_step},
                       {"epoch_batches", st.epoch_batches}, {"epoch_loss", st.epoch_loss},
                       {"best_val", st.best_val}, {"seconds", st.seconds},
@@ -138,8 +142,9 @@ ResumeState load_training_checkpoint(const std::string& path, nn::G2LNet& net, n
 LoadedModel load_model(const std::string& path) {
     const Checkpoint ck = load_checkpoint(path);
     const json meta = read_meta(ck, path);
-    G2L_CHECK(meta.value("format", "") == "g2l-train", "checkpoint '", path,
-              "' is not a g2l model checkpoint (format '", meta.value("format", ""), "')");
+    const std::string format = meta.value("format", "");
+    G2L_CHECK(format == "g2l-train" || format == "g2l-model", "checkpoint '", path,
+              "' is not a g2l model checkpoint or export (format '", format, "')");
     LoadedModel m;
     try {
         m.net = std::make_unique<nn::G2LNet>(model_from_json(key(meta, "model", path)));
@@ -151,6 +156,9 @@ LoadedModel load_model(const std::string& path) {
         }
         m.crop = key(meta, "sampling", path).at("crop");
         m.radius_scale = meta.at("sampling").at("radius_scale");
+        // Added 2026-12-01; older files fed the whole crop (0 = no sampling).
+        m.points = meta.at("sampling").value("points", 0);
+        m.seg_points = meta.at("sampling").value("seg_points", 2000);
         m.config_json = meta.contains("config") ? meta.at("config").dump(2) : "{}";
     } catch (const json::exception& e) {
         G2L_CHECK(false, "checkpoint '", path, "': malformed metadata: ", e.what());
@@ -165,6 +173,30 @@ LoadedModel load_model(const std::string& path) {
     }
     m.net->eval();
     return m;
+}
+
+int64_t export_model(const std::string& checkpoint_path, const std::string& out_path) {
+    (void)load_model(checkpoint_path);  // everything an export needs is there and consistent
+    const Checkpoint ck = load_checkpoint(checkpoint_path);
+    const json meta = read_meta(ck, checkpoint_path);
+    json out;
+    out["format"] = "g2l-model";
+    for (const char* k : {"model", "classes", "keypoints", "sampling", "config"})
+        if (meta.contains(k)) out[k] = meta.at(k);
+    if (meta.contains("resume")) {
+        const json& r = meta.at("resume");
+        out["trained"] = {{"epoch", r.value("epoch", 0)}, {"global_step", r.value("global_step", 0)},
+                          {"seconds", r.value("seconds", 0.0)}, {"best_val", r.value("best_val", -1.0)},
+                          {"source", checkpoint_path}};
+    }
+    std::vector<std::pair<std::string, Tensor>> tensors;
+    for (const auto& [name, t] : ck.tensors)
+        if (name.rfind("model.", 0) == 0) tensors.emplace_back(name, t);
+    save_checkpoint(out_path, tensors, out.dump());
+    std::error_code ec;
+    const auto size = std::filesystem::file_size(out_path, ec);
+    G2L_CHECK(!ec, "export '", out_path, "': cannot stat the written file: ", ec.message());
+    return int64_t(size);
 }
 
 void truncate_jsonl(const std::string& path, const std::string& k, int64_t max_value) {

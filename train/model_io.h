@@ -48,9 +48,19 @@ struct LoadedModel {
     KeypointTable keypoints;       ///< class index -> model keypoints (mm)
     std::string crop = "sphere";   ///< crop the network was trained with
     double radius_scale = 1.0;
+    int points = 0;                ///< seg-net input points per crop (0 = the whole crop)
+    int seg_points = 2000;         ///< object points fed to the T-net and the rotation blocks
     std::string config_json;       ///< the training config (effective)
 };
+/// Accepts training checkpoints ("g2l-train") and inference exports ("g2l-model").
 LoadedModel load_model(const std::string& path);
+
+/// Writes an inference export of a training checkpoint (atomically): the model's tensors,
+/// network hyper-parameters, object ids, keypoints, crop and point-sampling settings, the
+/// training config and where it came from (epoch, step, seconds) — no optimizer state, so it is
+/// about a third of the checkpoint. Returns the number of bytes written. Throws g2l::Error naming
+/// the file for anything load_model would refuse.
+int64_t export_model(const std::string& checkpoint_path, const std::string& out_path);
 
 /// Keeps only the lines of a JSONL log whose numeric `key` is <= max_value (after a resume the
 /// log continues from the checkpoint). A missing file is fine.

@@ -27,10 +27,13 @@ Tensor one_hot(const std::vector<PoseSample>& s, int num_classes) {
 
 StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
                     const KeypointTable& keypoints, int num_classes, int seg_points,
-                    const LossWeights& w, Rng& rng, const SymmetricKeypoints* symmetric) {
+                    const LossWeights& w, Rng& rng, const SymmetricKeypoints* symmetric,
+                    const StepOptions& opt) {
     const int64_t B = int64_t(samples.size());
     G2L_CHECK(B > 0, "g2l_step: empty batch");
     G2L_CHECK(seg_points > 0, "g2l_step: seg_points must be > 0, got ", seg_points);
+    G2L_CHECK(std::isfinite(opt.centre_noise_mm) && opt.centre_noise_mm >= 0,
+              "g2l_step: centre_noise_mm must be finite and >= 0, got ", opt.centre_noise_mm);
     const int64_t N = int64_t(samples[0].labels.size());
     const int64_t M = seg_points;
     for (int64_t b = 0; b < B; ++b)
@@ -40,6 +43,34 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
                   " points, sample 0 has ", N);
     const int K = net.config().num_keypoints;
     const Tensor onehot = one_hot(samples, num_classes);
+    StepLosses out;
+
+    if (opt.rot_only) {
+        // Rotation blocks alone on the ground-truth object points (resampled to M).
+        Tensor xr = Tensor::empty({B, 3, M});
+        std::vector<uint8_t> object(static_cast<size_t>(B * M), 1);
+        std::vector<Eigen::Vector3f> centres(static_cast<size_t>(B));
+        for (int64_t b = 0; b < B; ++b) {
+            const PoseSample& s = samples[size_t(b)];
+            std::vector<int32_t> idx;
+            for (int64_t n = 0; n < N; ++n)
+                if (s.labels[size_t(n)]) idx.push_back(int32_t(n));
+            G2L_CHECK(!idx.empty(), "g2l_step: sample ", b, " (object ", s.obj_id,
+                      ") has no object point");
+            Eigen::Vector3f c = s.t;
+            if (opt.centre_noise_mm > 0)
+                for (int a = 0; a < 3; ++a) c[a] += float(rng.normal() * opt.centre_noise_mm);
+            centres[size_t(b)] = c;
+            float* pr = xr.data<float>() + b * 3 * M;
+            for (int64_t m = 0; m < M; ++m) {
+                const size_t p = size_t(idx[rng.below(idx.size())]);
+                for (int a = 0; a < 3; ++a) pr[a * M + m] = s.points[p * 3 + size_t(a)] - c[a];
+            }
+        }
+        out.total = rotation_losses(net, samples, xr, object, centres, onehot, keypoints, w,
+                                    symmetric, opt, &out);
+        return out;
+    }
 
     // ---- 1. segmentation on the augmented crop: x [B, 3, N] ----
     Tensor x = Tensor::empty({B, 3, N});
@@ -51,16 +82,12 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
         std::copy(samples[b].labels.begin(), samples[b].labels.end(),
                   labels.data<int32_t>() + b * N);
     }
-    StepLosses out;
     const Tensor logp = net.seg_forward(x, onehot);  // [B, 2, N]
     const Tensor l_seg = nn::nll_loss(logp, labels);
 
     // ---- 2. points predicted as object, resampled to M (no gradient through the choice) ----
     Tensor xt = Tensor::empty({B, 3, M});      // T-net input: object points minus their mean
-    Tensor xr = Tensor::empty({B, 3, M});      // rotation input: points minus GT translation
     Tensor t_target = Tensor::empty({B, 3});
-    Tensor vec_target = Tensor::zeros({B, 3 * int64_t(K), M});
-    Tensor kp_target = Tensor::empty({B, K, 3});
     std::vector<Eigen::Vector3f> sel_mean(static_cast<size_t>(B));
     std::vector<std::vector<int32_t>> picks(static_cast<size_t>(B));
     int64_t correct = 0;
@@ -73,7 +100,7 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
             correct += pred == s.labels[size_t(n)];
             if (pred) idx.push_back(int32_t(n));
         }
-        if (idx.size() < 10) {
+        if (idx.size() < 10 || opt.rot_gt_points) {
             idx.clear();
             for (int64_t n = 0; n < N; ++n)
                 if (s.labels[size_t(n)]) idx.push_back(int32_t(n));
@@ -88,23 +115,11 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
                                     s.points[size_t(p) * 3 + 2]);
         mean /= float(M);
         sel_mean[size_t(b)] = mean;
-        G2L_CHECK(s.class_index < int(keypoints.size()) &&
-                      int(keypoints[size_t(s.class_index)].size()) == K,
-                  "g2l_step: no ", K, " keypoints for class index ", s.class_index);
-        if (symmetric)
-            G2L_CHECK(s.class_index < int(symmetric->size()) &&
-                          !(*symmetric)[size_t(s.class_index)].empty(),
-                      "g2l_step: no symmetric keypoint sets for class index ", s.class_index);
         for (int c = 0; c < 3; ++c) t_target.data<float>()[b * 3 + c] = s.t[c] - mean[c];
         float* pt = xt.data<float>() + b * 3 * M;
-        float* pr = xr.data<float>() + b * 3 * M;
         for (int64_t m = 0; m < M; ++m) {
             const size_t p = size_t(pick[size_t(m)]);
-            const Eigen::Vector3f q(s.points[p * 3], s.points[p * 3 + 1], s.points[p * 3 + 2]);
-            for (int a = 0; a < 3; ++a) {
-                pt[a * M + m] = q[a] - mean[a];
-                pr[a * M + m] = q[a] - s.t[a];
-            }
+            for (int a = 0; a < 3; ++a) pt[a * M + m] = s.points[p * 3 + size_t(a)] - mean[a];
         }
         picks[size_t(b)] = std::move(pick);
     }
@@ -127,13 +142,91 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
         out.t_error_mm = e / double(B);
     }
 
-    // ---- 4. rotation blocks in the canonical frame ----
-    const nn::RotOut rot = net.rot_forward(xr, onehot);
-    // Targets: the GT keypoints R * kp (of the symmetric set nearest block B's prediction when
-    // `symmetric` is given) and, for object points, unit vectors to them (spec §5).
+    // ---- 4. rotation blocks in the canonical frame: points minus the centre ----
+    Tensor xr = Tensor::empty({B, 3, M});
+    std::vector<uint8_t> object(static_cast<size_t>(B * M));
+    std::vector<Eigen::Vector3f> centres(static_cast<size_t>(B));
+    for (int64_t b = 0; b < B; ++b) {
+        const PoseSample& s = samples[size_t(b)];
+        Eigen::Vector3f c = s.t;
+        if (opt.centre_with_prediction) {
+            for (int a = 0; a < 3; ++a)
+                c[a] = sel_mean[size_t(b)][a] + t_pred.data<float>()[b * 3 + a];
+        } else if (opt.centre_noise_mm > 0) {
+            for (int a = 0; a < 3; ++a) c[a] += float(rng.normal() * opt.centre_noise_mm);
+        }
+        centres[size_t(b)] = c;
+        float* pr = xr.data<float>() + b * 3 * M;
+        for (int64_t m = 0; m < M; ++m) {
+            const size_t p = size_t(picks[size_t(b)][size_t(m)]);
+            for (int a = 0; a < 3; ++a) pr[a * M + m] = s.points[p * 3 + size_t(a)] - c[a];
+            object[size_t(b * M + m)] = s.labels[p] ? 1 : 0;
+        }
+    }
+    Tensor total = nn::mul_scalar(l_seg, w.seg) + nn::mul_scalar(l_t, w.t);
+    out.seg = l_seg.item<double>();
+    out.t = l_t.item<double>();
+    total = total + rotation_losses(net, samples, xr, object, centres, onehot, keypoints, w,
+                                    symmetric, opt, &out);
+    (void)K;
+    out.total = total;
+    return out;
+}
+
+Tensor rotation_losses(nn::G2LNet& net, const std::vector<PoseSample>& samples, const Tensor& xr,
+                       const std::vector<uint8_t>& object,
+                       const std::vector<Eigen::Vector3f>& centres, const Tensor& onehot,
+                       const KeypointTable& keypoints, const LossWeights& w,
+                       const SymmetricKeypoints* symmetric, const StepOptions& opt,
+                       StepLosses* out) {
+    const int64_t B = int64_t(samples.size());
+    G2L_CHECK(xr.dim() == 3 && xr.size(0) == B && xr.size(1) == 3,
+              "rotation_losses: expected xr as [", B, ", 3, M], got ", xr.desc());
+    const int64_t M = xr.size(2);
+    G2L_CHECK(int64_t(object.size()) == B * M && int64_t(centres.size()) == B,
+              "rotation_losses: ", object.size(), " object flags and ", centres.size(),
+              " centres for ", B, " samples of ", M, " points");
+    const int K = net.config().num_keypoints;
+    // The rotation unit of each sample (mm per unit) and its inverse, [B, 1, 1].
+    const bool unit = net.config().rot_unit != "mm";
+    Tensor scale, inv_scale;
+    std::vector<float> sc(static_cast<size_t>(B), 1.f);
+    for (int64_t b = 0; b < B; ++b) {
+        const int cls = samples[size_t(b)].class_index;
+        G2L_CHECK(cls >= 0 && cls < int(keypoints.size()) &&
+                      int(keypoints[size_t(cls)].size()) == K,
+                  "g2l_step: no ", K, " keypoints for class index ", cls);
+        if (symmetric)
+            G2L_CHECK(cls < int(symmetric->size()) && !(*symmetric)[size_t(cls)].empty(),
+                      "g2l_step: no symmetric keypoint sets for class index ", cls);
+        if (unit) {
+            G2L_CHECK(cls < int(opt.rot_scale.size()) && opt.rot_scale[size_t(cls)] > 0,
+                      "g2l_step: rot_unit '", net.config().rot_unit,
+                      "' needs a rotation scale for class index ", cls);
+            sc[size_t(b)] = opt.rot_scale[size_t(cls)];
+        }
+    }
+    if (unit) {
+        scale = Tensor::empty({B, 1, 1});
+        inv_scale = Tensor::empty({B, 1, 1});
+        for (int64_t b = 0; b < B; ++b) {
+            scale.data<float>()[b] = sc[size_t(b)];
+            inv_scale.data<float>()[b] = 1.f / sc[size_t(b)];
+        }
+    }
+    // In the rotation unit (identity for mm).
+    auto in_unit = [&](const Tensor& t) { return unit ? nn::mul(t, inv_scale) : t; };
+
+    const nn::RotOut rot = net.rot_forward(xr, onehot, scale);
+    Tensor vec_target = Tensor::zeros({B, 3 * int64_t(K), M});
+    Tensor kp_target = Tensor::empty({B, K, 3});
+    // Targets: the GT keypoints R * kp + (t - centre) (of the symmetric set nearest block B's
+    // prediction when `symmetric` is given) and, for object points, unit vectors to them (spec
+    // §5).
     int64_t n_sym = 0;
     for (int64_t b = 0; b < B; ++b) {
         const PoseSample& s = samples[size_t(b)];
+        const Eigen::Vector3f off = s.t - centres[size_t(b)];
         const KeypointTable* sets = symmetric ? &(*symmetric)[size_t(s.class_index)] : nullptr;
         const std::vector<Eigen::Vector3f>* kpm = &keypoints[size_t(s.class_index)];
         if (sets) {
@@ -146,7 +239,8 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
                           " keypoints, expected ", K);
                 double d = 0;
                 for (int k = 0; k < K; ++k)
-                    d += (s.R * (*sets)[i][size_t(k)] - Eigen::Map<const Eigen::Vector3f>(pred + k * 3))
+                    d += (s.R * (*sets)[i][size_t(k)] + off -
+                          Eigen::Map<const Eigen::Vector3f>(pred + k * 3))
                              .squaredNorm();
                 if (best < 0 || d < best) best = d, best_i = i;
             }
@@ -155,14 +249,14 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
         }
         std::vector<Eigen::Vector3f> kpc(static_cast<size_t>(K));  // canonical-frame keypoints
         for (int k = 0; k < K; ++k) {
-            kpc[size_t(k)] = s.R * (*kpm)[size_t(k)];
+            kpc[size_t(k)] = s.R * (*kpm)[size_t(k)] + off;
             for (int c = 0; c < 3; ++c) kp_target.data<float>()[(b * K + k) * 3 + c] = kpc[size_t(k)][c];
         }
         if (!rot.vectors.defined()) continue;
         const float* pr = xr.data<float>() + b * 3 * M;
         float* pv = vec_target.data<float>() + b * 3 * K * M;
         for (int64_t m = 0; m < M; ++m) {
-            if (!s.labels[size_t(picks[size_t(b)][size_t(m)])]) continue;  // background: zero targets
+            if (!object[size_t(b * M + m)]) continue;  // background: zero targets
             const Eigen::Vector3f c(pr[m], pr[M + m], pr[2 * M + m]);
             for (int k = 0; k < K; ++k) {
                 Eigen::Vector3f v = kpc[size_t(k)] - c;
@@ -172,18 +266,18 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
             }
         }
     }
-    out.sym_fraction = double(n_sym) / double(B);
-    Tensor total = nn::mul_scalar(l_seg, w.seg) + nn::mul_scalar(l_t, w.t);
-    out.seg = l_seg.item<double>();
-    out.t = l_t.item<double>();
+    out->sym_fraction = double(n_sym) / double(B);
+    Tensor total;
+    auto add = [&total](const Tensor& t) { total = total.defined() ? total + t : t; };
     if (rot.vectors.defined()) {
         const Tensor l_vec = nn::mse_loss(rot.vectors, vec_target);
-        out.vec = l_vec.item<double>();
-        total = total + nn::mul_scalar(l_vec, w.vec);
+        out->vec = l_vec.item<double>();
+        add(nn::mul_scalar(l_vec, w.vec));
     }
-    const Tensor l_kp = nn::mse_loss(rot.keypoints, kp_target);
-    out.kp = l_kp.item<double>();
-    total = total + nn::mul_scalar(l_kp, w.kp);
+    const Tensor kp_target_u = in_unit(kp_target);
+    const Tensor l_kp = nn::mse_loss(in_unit(rot.keypoints), kp_target_u);
+    out->kp = l_kp.item<double>();
+    add(nn::mul_scalar(l_kp, w.kp));
     Tensor final_kp = rot.keypoints;
     if (rot.residual.defined()) {
         // Block C's target online: R_hat = Kabsch(model keypoints -> predicted keypoints,
@@ -197,19 +291,27 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
         Tensor Rhat = Tensor::empty({B, 3, 3});
         geom::kabsch_batched(model_kp.data<float>(), rot.keypoints.data<float>(), int(B), K,
                              Rhat.data<float>());
+        // base = R_hat * model keypoints + t_hat, t_hat aligning the centroids (the inputs
+        // may be centred off the object's origin: centre noise / predicted T).
         Tensor base = Tensor::empty({B, K, 3});
         for (int64_t b = 0; b < B; ++b) {
             const Eigen::Map<const Eigen::Matrix<float, 3, 3, Eigen::RowMajor>> R(
                 Rhat.data<float>() + b * 9);
+            Eigen::Vector3f cm = Eigen::Vector3f::Zero(), cp = Eigen::Vector3f::Zero();
+            for (int k = 0; k < K; ++k) {
+                cm += Eigen::Map<const Eigen::Vector3f>(model_kp.data<float>() + (b * K + k) * 3);
+                cp += Eigen::Map<const Eigen::Vector3f>(rot.keypoints.data<float>() + (b * K + k) * 3);
+            }
+            const Eigen::Vector3f th = (cp - R * cm) / float(K);
             for (int k = 0; k < K; ++k) {
                 const Eigen::Map<const Eigen::Vector3f> p(model_kp.data<float>() + (b * K + k) * 3);
-                Eigen::Map<Eigen::Vector3f>(base.data<float>() + (b * K + k) * 3) = R * p;
+                Eigen::Map<Eigen::Vector3f>(base.data<float>() + (b * K + k) * 3) = R * p + th;
             }
         }
         final_kp = base + rot.residual;
-        const Tensor l_res = nn::mse_loss(final_kp, kp_target);
-        out.res = l_res.item<double>();
-        total = total + nn::mul_scalar(l_res, w.res);
+        const Tensor l_res = nn::mse_loss(in_unit(final_kp), kp_target_u);
+        out->res = l_res.item<double>();
+        add(nn::mul_scalar(l_res, w.res));
     }
     {
         double e = 0;
@@ -220,10 +322,9 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
             for (int c = 0; c < 3; ++c) d2 += double(a[i * 3 + c] - g[i * 3 + c]) * (a[i * 3 + c] - g[i * 3 + c]);
             e += std::sqrt(d2);
         }
-        out.kp_error_mm = e / double(B * K);
+        out->kp_error_mm = e / double(B * K);
     }
-    out.total = total;
-    return out;
+    return total;
 }
 
 }  // namespace g2l::train

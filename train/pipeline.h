@@ -6,6 +6,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <vector>
 
 #include "core/rng.h"
@@ -27,6 +28,28 @@ using KeypointTable = std::vector<std::vector<Eigen::Vector3f>>;
 /// (geom::geometric_symmetries): [num_classes][S][K] x 3, the identity (= KeypointTable) first.
 using SymmetricKeypoints = std::vector<KeypointTable>;
 
+/// Options of a training step beyond the loss weights.
+struct StepOptions {
+    /// Per class index: mm per unit of the rotation branch (nn::rotation_scale of the class's
+    /// keypoints). Empty = 1 for every class (rot_unit "mm").
+    std::vector<float> rot_scale;
+    /// Rotation input points: "pred" (the points the seg net predicts as object, as at test
+    /// time; fewer than 10 -> the GT object points) or "gt" (the ground-truth object points: the
+    /// rotation blocks learn on clean input while the seg net is still poor).
+    bool rot_gt_points = false;
+    /// Rotation input centre: the GT translation plus Gaussian noise of this std-dev per axis
+    /// (mm), so the rotation nets see the centring error that the T-net's estimate has at test
+    /// time. Targets stay geometrically consistent: keypoints relative to the noisy centre.
+    double centre_noise_mm = 0;
+    /// true: centre the rotation input with the T-net's prediction of this step (detached)
+    /// instead of the GT translation (+ noise) — exactly the test-time input.
+    bool centre_with_prediction = false;
+    /// true: train the rotation blocks alone — no segmentation or T-net forward pass; they get
+    /// the ground-truth object points centred on the GT translation (+ centre_noise_mm). The
+    /// seg/T losses are reported as 0. A cheap warm-up phase (loss.rot_only_epochs).
+    bool rot_only = false;
+};
+
 /// Scalar values of one step (for logs) and the differentiable total.
 struct StepLosses {
     Tensor total;
@@ -46,6 +69,20 @@ struct StepLosses {
 /// identity one (a min-over-symmetries loss; see geometry/symmetry.h).
 StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
                     const KeypointTable& keypoints, int num_classes, int seg_points,
-                    const LossWeights& w, Rng& rng, const SymmetricKeypoints* symmetric = nullptr);
+                    const LossWeights& w, Rng& rng, const SymmetricKeypoints* symmetric = nullptr,
+                    const StepOptions& opt = StepOptions());
+
+/// The rotation blocks alone (A, B, C) on canonical points, as in g2l_step's part 4.
+/// xr: [B, 3, M] points minus `centres` (mm); object[b * M + m] != 0 for points of the object
+/// (the others get zero vector targets, as in the official code); centres[b]: the point the
+/// input was centred on, in the sample's frame (targets are R kp + t - centre). Losses are
+/// taken in the rotation unit (opt.rot_scale). Fills vec, kp, res, kp_error_mm, sym_fraction
+/// and returns the weighted sum of the rotation losses.
+Tensor rotation_losses(nn::G2LNet& net, const std::vector<PoseSample>& samples, const Tensor& xr,
+                       const std::vector<uint8_t>& object,
+                       const std::vector<Eigen::Vector3f>& centres, const Tensor& onehot,
+                       const KeypointTable& keypoints, const LossWeights& w,
+                       const SymmetricKeypoints* symmetric, const StepOptions& opt,
+                       StepLosses* out);
 
 }  // namespace g2l::train

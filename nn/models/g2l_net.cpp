@@ -10,6 +10,8 @@ namespace g2l::nn {
 namespace {
 
 const G2LConfig& checked(const G2LConfig& c) {
+    G2L_CHECK(c.rot_unit == "mm" || c.rot_unit == "kp_rms",
+              "G2LConfig: rot_unit must be \"mm\" or \"kp_rms\", got \"", c.rot_unit, "\"");
     G2L_CHECK(c.num_classes >= 1, "G2LConfig: num_classes must be >= 1, got ", c.num_classes);
     G2L_CHECK(c.num_keypoints >= 3, "G2LConfig: num_keypoints must be >= 3 (Kabsch), got ",
               c.num_keypoints);
@@ -65,20 +67,41 @@ Tensor G2LNet::t_forward(const Tensor& x, const Tensor& onehot) {
     return scaled(tnet_->forward(x, onehot));
 }
 
-RotOut G2LNet::rot_forward(const Tensor& x, const Tensor& onehot) {
+double rotation_scale(const std::string& unit, const std::vector<Eigen::Vector3f>& kp) {
+    if (unit == "mm") return 1.0;
+    G2L_CHECK(unit == "kp_rms", "rotation unit must be \"mm\" or \"kp_rms\", got \"", unit, "\"");
+    G2L_CHECK(!kp.empty(), "rotation_scale: no keypoints");
+    double s = 0;
+    for (const auto& p : kp) s += double(p.squaredNorm());
+    s = std::sqrt(s / double(kp.size()));
+    G2L_CHECK(std::isfinite(s) && s > 1e-3, "rotation_scale: keypoints of RMS norm ", s,
+              " mm cannot set the rotation unit");
+    return s;
+}
+
+RotOut G2LNet::rot_forward(const Tensor& x, const Tensor& onehot, const Tensor& scale) {
+    const bool unit = scale.defined();
+    if (unit)
+        G2L_CHECK(scale.dim() == 3 && x.dim() == 3 && scale.size(0) == x.size(0) &&
+                      scale.size(1) == 1 && scale.size(2) == 1,
+                  "G2LNet::rot_forward: scale must be [B, 1, 1] for x ", x.desc(), ", got ",
+                  scale.desc());
+    // Outputs in mm: multiplied by the per-sample scale (kp_rms) or by out_scale_mm.
+    auto to_mm = [&](const Tensor& t) { return unit ? mul(t, scale) : scaled(t); };
+    const Tensor xin = unit ? div(x, scale) : x;
     RotOut out;
     PointFeatures feat;
     if (evf_) {
-        EvfOut a = evf_->forward(x, onehot);
+        EvfOut a = evf_->forward(xin, onehot);
         out.vectors = a.vectors;
         feat = a.feat;  // already detached
-        out.keypoints = scaled(rot_->forward(out.vectors, feat));
+        out.keypoints = to_mm(rot_->forward(out.vectors, feat));
     } else {
-        const PointFeatures live = rot_->features(x, onehot);
-        out.keypoints = scaled(rot_->forward(Tensor(), live));
+        const PointFeatures live = rot_->features(xin, onehot);
+        out.keypoints = to_mm(rot_->forward(Tensor(), live));
         feat = live.detached();
     }
-    if (rre_) out.residual = scaled(rre_->forward(feat));
+    if (rre_) out.residual = to_mm(rre_->forward(feat));
     return out;
 }
 

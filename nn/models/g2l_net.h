@@ -8,7 +8,9 @@
 // buffers and the Dropout "rng_state" buffers. See g2l_blocks.h for the head column order.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
+#include <string>
 #include <memory>
 #include <vector>
 
@@ -31,7 +33,17 @@ struct G2LConfig {
     /// residual): the last layer predicts value / out_scale_mm. The official code uses 1, which
     /// makes Adam need thousands of steps just to reach the ~100 mm output range.
     double out_scale_mm = 1.0;
+    /// Unit of the rotation branch (inputs and outputs): "mm" (official) or "kp_rms" (the RMS
+    /// norm of the object's model keypoints, so keypoint targets have unit size for every
+    /// object). The network itself only sees the `scale` tensor; callers compute it with
+    /// rotation_scale(). out_scale_mm does not apply to the rotation branch under "kp_rms".
+    std::string rot_unit = "mm";
 };
+
+/// Scale (mm per unit) of the rotation branch for an object with these model keypoints under
+/// `rot_unit`: 1 for "mm", sqrt(mean_k |kp_k|^2) for "kp_rms". Throws for another unit or
+/// degenerate keypoints.
+double rotation_scale(const std::string& rot_unit, const std::vector<Eigen::Vector3f>& keypoints);
 
 /// The outputs of the rotation branch.
 struct RotOut {
@@ -66,7 +78,13 @@ public:
     /// A (if evf) -> B on [A's vectors, A's detached features] -> C (if rre) on the same
     /// detached features. Without evf, B's own backbone provides the features (trained by B's
     /// loss) and C gets them detached.
-    RotOut rot_forward(const Tensor& x, const Tensor& onehot);
+    ///
+    /// `scale` (optional, [B, 1, 1], mm): the rotation branch works in units of `scale` per
+    /// sample: x is divided by it before block A, and the keypoints and residual (predicted in
+    /// those units) are multiplied by it, so the outputs are always in mm. With the object's
+    /// keypoint RMS radius as the scale every object's keypoints have unit size (see
+    /// G2LConfig::rot_unit), which keeps blocks B/C off the "predict zero" plateau.
+    RotOut rot_forward(const Tensor& x, const Tensor& onehot, const Tensor& scale = Tensor());
 
     /// One ParamGroup per built sub-network, named "seg", "tnet", "evf", "rot", "rre", with
     /// full dotted parameter names ("seg.backbone.conv1.weight") and the given multipliers.

@@ -24,8 +24,23 @@ Tensor to_input(const geom::Points& pts, const std::vector<int>& idx, const Eige
 }
 }  // namespace
 
+std::vector<int> even_sample(int size, int n) {
+    std::vector<int> out;
+    if (size <= 0 || n <= 0) return out;
+    out.reserve(size_t(n));
+    if (size >= n) {
+        for (int i = 0; i < n; ++i) out.push_back(int(int64_t(i) * size / n));
+    } else {
+        for (int i = 0; i < size; ++i) out.push_back(i);
+        const int extra = n - size;
+        for (int i = 0; i < extra; ++i) out.push_back(int(int64_t(i) * size / extra));
+    }
+    return out;
+}
+
 PoseEstimate estimate_pose(G2LNet& net, const geom::Points& pts, int class_index,
-                           const std::vector<Eigen::Vector3f>& model_keypoints, int max_points) {
+                           const std::vector<Eigen::Vector3f>& model_keypoints, int max_points,
+                           int crop_points_n) {
     const G2LConfig& cfg = net.config();
     G2L_CHECK(class_index >= 0 && class_index < cfg.num_classes, "estimate_pose: class index ",
               class_index, " outside [0, ", cfg.num_classes, ")");
@@ -43,24 +58,31 @@ PoseEstimate estimate_pose(G2LNet& net, const geom::Points& pts, int class_index
 
     // 1. segmentation on the crop centred by its mean
     auto t0 = Clock::now();
-    std::vector<int> all(size_t(pts.rows()));
-    for (size_t i = 0; i < all.size(); ++i) all[i] = int(i);
-    const Eigen::Vector3f mean_all = pts.colwise().mean().transpose();
+    std::vector<int> all;
+    if (crop_points_n > 0) {
+        all = even_sample(int(pts.rows()), crop_points_n);
+    } else {
+        all.resize(size_t(pts.rows()));
+        for (size_t i = 0; i < all.size(); ++i) all[i] = int(i);
+    }
+    // The mean of the points the seg net sees (training centres its input the same way).
+    Eigen::Vector3f mean_all = Eigen::Vector3f::Zero();
+    for (int i : all) mean_all += pts.row(i).transpose();
+    mean_all /= float(all.size());
     const Tensor logp = net.seg_forward(to_input(pts, all, mean_all), onehot);
-    const int64_t N = pts.rows();
+    const int64_t N = int64_t(all.size());
     std::vector<int> obj;
     for (int64_t n = 0; n < N; ++n)
-        if (logp.data<float>()[N + n] > logp.data<float>()[n]) obj.push_back(int(n));
+        if (logp.data<float>()[N + n] > logp.data<float>()[n]) obj.push_back(all[size_t(n)]);
     est.ms_seg = ms_since(t0);
     est.num_object_points = int(obj.size());
     if (obj.size() < 10) {
         est.status = "too few object points";
         return est;
     }
-    if (max_points > 0 && int(obj.size()) > max_points) {
-        std::vector<int> sub(static_cast<size_t>(max_points));
-        for (int i = 0; i < max_points; ++i)
-            sub[size_t(i)] = obj[size_t(int64_t(i) * int64_t(obj.size()) / max_points)];
+    if (max_points > 0) {
+        std::vector<int> sub;
+        for (int i : even_sample(int(obj.size()), max_points)) sub.push_back(obj[size_t(i)]);
         obj.swap(sub);
     }
 
@@ -76,7 +98,12 @@ PoseEstimate estimate_pose(G2LNet& net, const geom::Points& pts, int class_index
 
     // 3. rotation in the canonical frame (points - T)
     t0 = Clock::now();
-    const RotOut rot = net.rot_forward(to_input(pts, obj, T), onehot);
+    Tensor scale;
+    if (cfg.rot_unit != "mm") {
+        scale = Tensor::empty({1, 1, 1});
+        scale.data<float>()[0] = float(rotation_scale(cfg.rot_unit, model_keypoints));
+    }
+    const RotOut rot = net.rot_forward(to_input(pts, obj, T), onehot, scale);
     const int K = cfg.num_keypoints;
     geom::Points P(K, 3), Q(K, 3);
     for (int k = 0; k < K; ++k) {

@@ -27,8 +27,17 @@ struct PoseEstimate {
 /// `max_points` caps the object points fed to the T/rotation nets (a deterministic stride
 /// subsample; 0 = no cap). Runs the networks without recording a graph (the caller puts `net`
 /// in eval mode). Throws g2l::Error for a bad class index or keypoint count.
+/// `crop_points` > 0: the seg net sees exactly that many crop points, picked deterministically
+/// as in training (an even stride when the crop has more, every point once plus evenly spread
+/// repeats when it has fewer); 0 = the whole crop. `max_points` > 0 likewise fixes the number of
+/// object points fed to the T-net and the rotation blocks (training: sampling.seg_points).
 PoseEstimate estimate_pose(G2LNet& net, const geom::Points& crop_points, int class_index,
                            const std::vector<Eigen::Vector3f>& model_keypoints,
-                           int max_points = 2000);
+                           int max_points = 2000, int crop_points_n = 0);
+
+/// n indices into [0, size): an even stride when size > n, else every index once and then
+/// evenly spread repeats (the deterministic counterpart of training's sampling). Empty when
+/// size == 0 or n <= 0.
+std::vector<int> even_sample(int size, int n);
 
 }  // namespace g2l::nn

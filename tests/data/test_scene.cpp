@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <Eigen/Eigenvalues>
 
 #include "core/error.h"
 #include "data/bop.h"
@@ -247,4 +248,89 @@ TEST_CASE("scene generator rejects missing meshes, empty lists and unknown ids",
     cfg.targets_min = 3;
     cfg.targets_max = 1;
     REQUIRE_THROWS_WITH(SceneGenerator(cfg, m.list()), Contains("got 3 and 1"));
+}
+
+TEST_CASE("resting mode: objects lie on one table in stable poses, camera above within range",
+          "[data][scene]") {
+    Models m;
+    SceneConfig cfg = small_config();
+    cfg.pose_mode = "resting";
+    cfg.noise.enabled = false;
+    cfg.distractors_max = 0;
+    cfg.camera_distance = {600, 900};
+    cfg.camera_elevation = {20, 70};
+    cfg.camera_roll_max = 10;
+    SceneGenerator gen(cfg, m.list());
+    RenderedFrame f;
+    const double deg = 180.0 / 3.14159265358979323846;
+    for (int64_t idx = 0; idx < 8; ++idx) {
+        gen.render_frame(idx, f);
+        REQUIRE(f.instances.size() >= 2);
+        // The table: a plane fitted to the pixels with depth that belong to no object.
+        const geom::Intrinsics& K = f.K;
+        std::vector<Eigen::Vector3d> table;
+        for (int v = 0; v < K.height; v += 3)
+            for (int u = 0; u < K.width; u += 3) {
+                const size_t i = size_t(v) * K.width + u;
+                const double z = f.depth[i];
+                if (z > 0 && f.mask[i] == 0)
+                    table.emplace_back((u + 0.5 - K.cx) * z / K.fx, (v + 0.5 - K.cy) * z / K.fy, z);
+            }
+        REQUIRE(table.size() > 100);
+        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        for (const auto& p : table) mean += p;
+        mean /= double(table.size());
+        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+        for (const auto& p : table) cov += (p - mean) * (p - mean).transpose();
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+        Eigen::Vector3d up = es.eigenvectors().col(0);
+        if (up.dot(-mean) < 0) up = -up;  // towards the camera, which is above the table
+        double off = 0;
+        for (const auto& p : table) off = std::max(off, std::fabs(up.dot(p - mean)));
+        CHECK(off < 2.0);  // a plane (depth is float and the quad is exact)
+        // Every object touches it from above, boxes with a face flat on it.
+        for (const auto& gt : f.instances) {
+            const geom::Mesh* mesh = gt.obj_id == 1 ? &m.a : gt.obj_id == 2 ? &m.b : &m.c;
+            double lo = 1e9;
+            for (int64_t v = 0; v < mesh->vertices.rows(); ++v)
+                lo = std::min(lo, up.dot(gt.pose.R * mesh->vertices.row(v).cast<double>().transpose() +
+                                         gt.pose.t - mean));
+            CHECK(lo == Approx(0.0).margin(1.5));
+            if (gt.obj_id != 2) {
+                double best = 0;
+                for (int a = 0; a < 3; ++a) best = std::max(best, std::fabs(up.dot(gt.pose.R.col(a))));
+                CHECK(best == Approx(1.0).margin(1e-3));
+            }
+        }
+        const double elevation = std::asin(-up.z()) * deg;  // camera above the table
+        CHECK(elevation >= 20 - 1e-6);
+        CHECK(elevation <= 70 + 1e-6);
+        const double roll = std::atan2(up.x(), -up.y()) * deg;  // image "up" is -y
+        CHECK(std::fabs(roll) <= 10 + 1e-6);
+        // The table gives depth around the objects: most of the image has a measurement.
+        int64_t with_depth = 0;
+        for (float z : f.depth) with_depth += z > 0;
+        CHECK(double(with_depth) / double(f.depth.size()) > 0.5);
+    }
+}
+
+TEST_CASE("resting mode settings are validated", "[data][scene]") {
+    CHECK_THROWS_WITH(parse_scene_config(R"({"pose_mode": "floating"})", "s.json"),
+                      Contains("pose_mode") && Contains("floating"));
+    CHECK_THROWS_WITH(parse_scene_config(R"({"camera_elevation": [0, 40]})", "s.json"),
+                      Contains("camera_elevation"));
+    CHECK_THROWS_WITH(parse_scene_config(R"({"camera_distance": [900, 600]})", "s.json"),
+                      Contains("camera_distance"));
+    CHECK_THROWS_WITH(parse_scene_config(R"({"camera_distance": [600]})", "s.json"),
+                      Contains("camera_distance") && Contains("2 numbers"));
+    CHECK_THROWS_WITH(parse_scene_config(R"({"table_size_mm": -1})", "s.json"),
+                      Contains("table_size_mm"));
+    const SceneConfig c = parse_scene_config(
+        R"({"pose_mode": "resting", "camera_distance": [400, 800], "camera_roll_max": 5})", "s.json");
+    CHECK(c.pose_mode == "resting");
+    CHECK(c.camera_distance[1] == 800);
+    const SceneConfig back = parse_scene_config(scene_config_to_json(c), "round trip");
+    CHECK(back.pose_mode == "resting");
+    CHECK(back.camera_roll_max == 5);
+    CHECK(back.camera_distance[0] == 400);
 }

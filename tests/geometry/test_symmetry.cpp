@@ -2,12 +2,14 @@
 // Geometric symmetries found from the model surface: boxes, cubes, cylinders, and a box whose
 // bump breaks every symmetry; bad options throw naming the value.
 #include <Eigen/Dense>
+#include <Eigen/Geometry>
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <vector>
 
 #include "core/error.h"
 #include "geometry/labels.h"
+#include "geometry/metrics.h"
 #include "geometry/symmetry.h"
 
 using namespace g2l;
@@ -162,4 +164,33 @@ TEST_CASE("symmetries: score of a flip, bad diameters and options throw naming t
     o.displacement_frac = std::nan("");
     CHECK_THROWS_WITH(geometric_symmetries(tree, info, o), Catch::Contains("displacement_frac"));
     CHECK_THROWS_WITH(symmetry_score(tree, flip, 0), Catch::Contains("max_points"));
+}
+
+TEST_CASE("add_sym / rotation_error_sym_deg: a pose off by a symmetry scores as right",
+          "[geometry][symmetry]") {
+    // A 40 x 60 x 100 box centred at the origin: the 180-degree turn about z maps it onto itself.
+    Points pts(8, 3);
+    for (int i = 0; i < 8; ++i)
+        pts.row(i) << (i & 1 ? 20.f : -20.f), (i & 2 ? 30.f : -30.f), (i & 4 ? 50.f : -50.f);
+    SymmetryTransform flip;
+    flip.R = Eigen::AngleAxisf(float(M_PI), Eigen::Vector3f::UnitZ()).toRotationMatrix();
+    const std::vector<SymmetryTransform> syms{SymmetryTransform{}, flip};
+    Pose gt;
+    gt.R = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+    gt.t = Eigen::Vector3d(10, -20, 800);
+    const Pose est = compose(gt, flip);  // the estimate is the flipped pose
+    // Plain ADD sees a 180-degree error: corners move by up to 2 x 36 mm.
+    CHECK(add(est, gt, pts) > 30.0);
+    CHECK(rotation_error_deg(est.R, gt.R) == Approx(180.0).margin(1e-3));
+    // Modulo the symmetry it is exact.
+    CHECK(add_sym(est, gt, pts, syms) == Approx(0.0).margin(1e-4));
+    CHECK(rotation_error_sym_deg(est.R, gt.R, syms) == Approx(0.0).margin(1e-3));
+    // Without symmetries the functions are the plain metrics.
+    CHECK(add_sym(est, gt, pts, {}) == Approx(add(est, gt, pts)));
+    CHECK(rotation_error_sym_deg(est.R, gt.R, {}) == Approx(180.0).margin(1e-3));
+    // A pose 10 degrees off the flipped one: 10 degrees modulo symmetries, not 170.
+    Pose off = est;
+    off.R = est.R * Eigen::AngleAxisd(10 * M_PI / 180, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    CHECK(rotation_error_sym_deg(off.R, gt.R, syms) == Approx(10.0).margin(1e-3));
+    CHECK(add_sym(off, gt, pts, syms) > 1.0);
 }

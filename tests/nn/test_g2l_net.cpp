@@ -9,6 +9,7 @@
 #include "core/rng.h"
 #include "gradcheck.h"
 #include "nn/models/g2l_net.h"
+#include "nn/models/g2l_pose.h"
 #include "nn/ops/concat_conv.h"
 #include "nn/ops/elementwise.h"
 #include "nn/ops/linear.h"
@@ -382,4 +383,42 @@ TEST_CASE("G2LNet: forward + backward time of one batch at width 1", "[.][perf][
     }
     std::cout << "best forward + backward: " << best << " ms per batch of 8\n";
     CHECK(best < 60000.0);
+}
+
+TEST_CASE("even_sample: a deterministic stride, or every point once plus spread repeats",
+          "[nn][pose]") {
+    CHECK(nn::even_sample(10, 5) == std::vector<int>{0, 2, 4, 6, 8});
+    CHECK(nn::even_sample(4, 4) == std::vector<int>{0, 1, 2, 3});
+    CHECK(nn::even_sample(3, 7) == std::vector<int>{0, 1, 2, 0, 0, 1, 2});
+    CHECK(nn::even_sample(0, 5).empty());
+    CHECK(nn::even_sample(5, 0).empty());
+    const auto big = nn::even_sample(100000, 1500);
+    REQUIRE(big.size() == 1500);
+    CHECK(std::is_sorted(big.begin(), big.end()));
+    CHECK(big.back() < 100000);
+}
+
+TEST_CASE("rot_forward: a per-sample scale divides the input and scales the outputs",
+          "[nn][g2l]") {
+    nn::G2LConfig c;
+    c.num_classes = 1;
+    c.width = 0.125;
+    c.rot_unit = "kp_rms";
+    nn::G2LNet net(c);
+    net.eval();
+    autograd::NoGradGuard ng;
+    Rng rng(3);
+    Tensor x = Tensor::empty({1, 3, 40});
+    for (int i = 0; i < 120; ++i) x.data<float>()[i] = float(rng.uniform(-60, 60));
+    const Tensor oh = Tensor::ones({1, 1});
+    Tensor s1 = Tensor::ones({1, 1, 1});
+    Tensor s2 = Tensor::empty({1, 1, 1});
+    s2.data<float>()[0] = 2.f;
+    Tensor x2 = Tensor::empty({1, 3, 40});
+    for (int i = 0; i < 120; ++i) x2.data<float>()[i] = 2.f * x.data<float>()[i];
+    // Doubling the points and the scale doubles the keypoints (the network sees the same input).
+    const auto k1 = net.rot_forward(x, oh, s1).keypoints.to_vector<float>();
+    const auto k2 = net.rot_forward(x2, oh, s2).keypoints.to_vector<float>();
+    for (size_t i = 0; i < k1.size(); ++i) CHECK(k2[i] == Approx(2 * k1[i]).margin(1e-4));
+    CHECK_THROWS_WITH(net.rot_forward(x, oh, Tensor::ones({1, 3})), Catch::Contains("[B, 1, 1]"));
 }

@@ -54,9 +54,10 @@ json everything() {
                    "surface_spacing_mm": 3, "min_points": 20, "min_visib_fract": 0.3},
       "augment": {"enabled": false, "shift_mm": [1, 2, 3], "rot_deg": 15, "point_noise_mm": 1.5},
       "model": {"num_classes": 21, "keypoints": "fps12", "evf": false, "rre": false,
-                "width": 0.5, "dropout": 0.1, "out_scale_mm": 100},
+                "width": 0.5, "dropout": 0.1, "out_scale_mm": 100, "rot_unit": "mm"},
       "loss": {"seg": 1, "t": 2, "vec": 3, "kp": 4, "res": 5, "t_loss": "smooth_l1",
-               "symmetric_targets": true},
+               "symmetric_targets": true, "rot_centre": "pred", "rot_centre_noise_mm": 7,
+               "rot_gt_points_epochs": 2, "rot_only_epochs": 3},
       "optim": {"lr": 0.005, "beta1": 0.8, "beta2": 0.95, "eps": 1e-6, "weight_decay": 0.0001,
                 "lr_mult": {"seg": 2, "tnet": 3, "evf": 4, "rot": 5, "rre": 6}},
       "schedule": {"kind": "official", "step_epochs": 7, "gamma": 0.25},
@@ -139,6 +140,11 @@ TEST_CASE("config: defaults are the paper's values", "[config]") {
     CHECK(c.model.width == 1.0);
     CHECK(c.model.dropout == 0.2);
     CHECK(c.model.out_scale_mm == 1.0);
+    CHECK(c.model.rot_unit == "kp_rms");
+    CHECK(c.loss.rot_centre == "gt");
+    CHECK(c.loss.rot_centre_noise_mm == 0);
+    CHECK(c.loss.rot_gt_points_epochs == 0);
+    CHECK(c.loss.rot_only_epochs == 0);
     CHECK_FALSE(c.loss.symmetric_targets);
     CHECK(c.loss.seg == 10);
     CHECK(c.loss.t == 0.1);
@@ -353,6 +359,13 @@ TEST_CASE("config: bad enum values list the allowed ones", "[config]") {
     REQUIRE_THROWS_WITH(parse(j), Contains("'schedule.kind' must be one of \"step\", "
                                            "\"official\", \"constant\""));
     j = minimal();
+    j["model"]["rot_unit"] = "cm";
+    REQUIRE_THROWS_WITH(parse(j), Contains("'model.rot_unit' must be one of \"kp_rms\", \"mm\", "
+                                           "got \"cm\""));
+    j = minimal();
+    j["loss"]["rot_centre"] = "mean";
+    REQUIRE_THROWS_WITH(parse(j), Contains("'loss.rot_centre' must be one of \"gt\", \"pred\""));
+    j = minimal();
     j["loss"]["t_loss"] = "l1";
     REQUIRE_THROWS_WITH(parse(j), Contains("'loss.t_loss' must be one of"));
     j = minimal();
@@ -385,6 +398,12 @@ TEST_CASE("config: value checks name the key and the value", "[config]") {
         {[](json& j) { j["model"]["out_scale_mm"] = -2; },
          "'model.out_scale_mm' must be finite and > 0, got -2"},
         {[](json& j) { j["schedule"]["gamma"] = 0; }, "'schedule.gamma' must be in (0, 1]"},
+        {[](json& j) { j["loss"]["rot_centre_noise_mm"] = -3; },
+         "'loss.rot_centre_noise_mm' must be >= 0, got -3"},
+        {[](json& j) { j["loss"]["rot_only_epochs"] = 200; },
+         "'loss.rot_only_epochs' must be in [0, train.epochs), got 200"},
+        {[](json& j) { j["loss"]["rot_gt_points_epochs"] = -1; },
+         "'loss.rot_gt_points_epochs' must be >= 0, got -1"},
         {[](json& j) { j["threads"] = -1; }, "'threads' must be >= 0"},
         {[](json& j) { j["loss"] = {{"seg", 0}, {"t", 0}, {"vec", 0}, {"kp", 0}, {"res", 0}}; },
          "every loss weight is 0"},
@@ -584,8 +603,11 @@ TEST_CASE("config: every shipped config parses", "[config]") {
     CHECK(s.data.object_ids.size() == 21);
     CHECK(s.model.num_classes == 21);
     CHECK(s.model.width == 0.5);
-    CHECK(s.train.batch == 8);
-    CHECK(s.train.time_limit_min == 60);
+    CHECK(s.train.batch == 16);
+    CHECK(s.train.time_limit_min == 100);
+    CHECK(s.model.rot_unit == "kp_rms");
+    CHECK(s.loss.symmetric_targets);
+    CHECK(s.data.train[0].scene.find("\"resting\"") != std::string::npos);
     REQUIRE(s.data.train.size() == 1);
     CHECK(s.data.train[0].type == "synthetic");
     CHECK(s.data.train[0].models_root == "/g2l_shared_for_test/ycbv");

@@ -156,3 +156,53 @@ TEST_CASE("g2l_step: overfitting one fixed batch drives every loss down", "[trai
     CHECK(last.res < 1e-3 * first.res);
     CHECK(last.kp_error_mm < 1.0);
 }
+
+TEST_CASE("g2l_step: the kp_rms unit with centring noise still fits one fixed batch",
+          "[train][pipeline]") {
+    nn::G2LConfig c;
+    c.num_classes = 1;
+    c.width = 0.25;
+    c.dropout = 0;
+    c.rre_dropout = 0;
+    c.rot_unit = "kp_rms";
+    nn::G2LNet net(c);
+    net.train();
+    nn::AdamOptions ao;
+    ao.lr = 1e-3;
+    ao.beta2 = 0.99;
+    nn::Adam adam(net.param_groups({1, 10, 1, 1, 1}), ao);  // multipliers 1 for A, B, C
+    const KeypointTable kp = box_keypoints();
+    const auto samples = box_samples(128);
+    StepOptions so;
+    so.rot_scale = {float(nn::rotation_scale("kp_rms", kp[0]))};
+    CHECK(so.rot_scale[0] == Approx(std::sqrt(20.0 * 20 + 30 * 30 + 50 * 50)));
+    so.centre_noise_mm = 5;
+    StepLosses first, last;
+    for (int it = 0; it < 200; ++it) {
+        adam.zero_grad();
+        Rng rng(5);  // the same resampling and centring noise every step
+        StepLosses L = g2l_step(net, samples, kp, 1, 64, LossWeights{}, rng, nullptr, so);
+        L.total.backward();
+        adam.step();
+        if (it == 0) first = L;
+        last = L;
+    }
+    INFO("kp " << first.kp << " -> " << last.kp << " (" << first.kp_error_mm << " -> "
+               << last.kp_error_mm << " mm), res " << first.res << " -> " << last.res);
+    // In units of the keypoints' RMS radius (~62 mm): the losses start near 1/3 ("predict
+    // zero") and end far below, and the error in mm is small.
+    CHECK(first.kp > 0.1);
+    CHECK(last.kp < 1e-3 * first.kp);
+    CHECK(last.res < 1e-2 * first.res);
+    CHECK(last.kp_error_mm < 2.0);
+
+    // A kp_rms network without the scale of its class is an error naming the class.
+    Rng rng(5);
+    CHECK_THROWS_WITH(g2l_step(net, samples, kp, 1, 64, LossWeights{}, rng),
+                      Catch::Contains("needs a rotation scale for class index 0"));
+    StepOptions bad = so;
+    bad.centre_noise_mm = -1;
+    CHECK_THROWS_WITH(g2l_step(net, samples, kp, 1, 64, LossWeights{}, rng, nullptr, bad),
+                      Catch::Contains("centre_noise_mm"));
+    CHECK_THROWS_WITH(nn::rotation_scale("cm", kp[0]), Catch::Contains("kp_rms"));
+}

@@ -140,4 +140,38 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model; evaluation on real f
     fs::resize_file(cut, fs::file_size(cut) / 2);
     REQUIRE_THROWS_WITH(train::load_model(cut), Catch::Contains("cut.g2l"));
     REQUIRE_THROWS_WITH(train::load_model(dir + "/missing.g2l"), Catch::Contains("missing.g2l"));
+
+    // The figures modulo symmetries are percentages / degrees, and ADD-sym <= ADD accuracy.
+    for (const auto& s : r.objects) {
+        CHECK(s.acc_addsym_10 >= s.acc_add_s_10 - 1e-9 * double(!s.symmetric));
+        CHECK(s.acc_adds_all_10 >= s.acc_addsym_10 - 1e-9);  // ADD-S <= ADD-sym per instance
+        CHECK(s.rot_err_sym_deg_median >= 0);
+        CHECK(s.rot_err_sym_deg_median <= 180);
+        CHECK(s.num_symmetries >= 1);
+    }
+    CHECK_THAT(train::report_json(r), Catch::Contains("acc_addsym_10") &&
+                                          Catch::Contains("rot_err_sym_deg_median") &&
+                                          Catch::Contains("acc_adds_all_10"));
+
+    // An inference export: no optimizer state, the same model, loadable by load_model.
+    const std::string ex = dir + "/export.g2l";
+    const int64_t bytes = train::export_model(dir + "/last.g2l", ex);
+    CHECK(bytes == int64_t(fs::file_size(ex)));
+    CHECK(bytes < int64_t(fs::file_size(dir + "/last.g2l")) / 2);
+    train::LoadedModel e = train::load_model(ex);
+    CHECK(e.class_of == m.class_of);
+    CHECK(e.points == m.points);
+    CHECK(e.seg_points == m.seg_points);
+    const auto sd = m.net->state_dict(), sde = e.net->state_dict();
+    REQUIRE(sd.size() == sde.size());
+    for (const auto& [name, t] : sd) {
+        INFO(name);
+        REQUIRE(sde.at(name).nbytes() == t.nbytes());
+        CHECK(std::memcmp(static_cast<const Tensor&>(sde.at(name)).data(), static_cast<const Tensor&>(t).data(), t.nbytes()) == 0);
+    }
+    const auto r2 = train::evaluate_gt_boxes(*e.net, ds, e.class_of, e.keypoints, eo);
+    CHECK(r2.average.auc_adds == r.average.auc_adds);
+    // A training run cannot resume from an export, and bad paths name the file.
+    CHECK_THROWS_WITH(train::export_model(cut, dir + "/x.g2l"), Catch::Contains("cut.g2l"));
+    CHECK_FALSE(fs::exists(dir + "/x.g2l"));
 }

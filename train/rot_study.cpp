@@ -1,0 +1,232 @@
+// SPDX-License-Identifier: MIT
+#include "train/rot_study.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "core/autograd.h"
+#include "geometry/kabsch.h"
+#include "geometry/metrics.h"
+#include "nn/models/g2l_net.h"
+#include "nn/optim.h"
+
+namespace g2l::train {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+uint64_t mix(uint64_t a, uint64_t b) {
+    uint64_t z = a * 0x9E3779B97F4A7C15ull + b + 0x632BE59BD9B4E019ull;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+// Rotation input of a batch: M ground-truth object points per sample (random picks with
+// replacement when `rng`, else a deterministic stride), centred on t + noise.
+struct RotInput {
+    Tensor x, onehot;
+    std::vector<uint8_t> object;
+    std::vector<Eigen::Vector3f> centres;
+};
+
+RotInput make_input(const std::vector<PoseSample>& s, int M, int num_classes, double noise_mm,
+                    Rng* rng) {
+    const int64_t B = int64_t(s.size());
+    RotInput in;
+    in.x = Tensor::empty({B, 3, M});
+    in.onehot = Tensor::zeros({B, num_classes});
+    in.object.assign(size_t(B) * size_t(M), 1);
+    in.centres.resize(size_t(B));
+    for (int64_t b = 0; b < B; ++b) {
+        const PoseSample& p = s[size_t(b)];
+        G2L_CHECK(p.class_index >= 0 && p.class_index < num_classes, "rot_study: class index ",
+                  p.class_index, " outside [0, ", num_classes, ")");
+        in.onehot.data<float>()[b * num_classes + p.class_index] = 1.f;
+        std::vector<int32_t> obj;
+        for (size_t n = 0; n < p.labels.size(); ++n)
+            if (p.labels[n]) obj.push_back(int32_t(n));
+        G2L_CHECK(!obj.empty(), "rot_study: sample ", b, " (object ", p.obj_id,
+                  ") has no object point");
+        Eigen::Vector3f c = p.t;
+        if (rng && noise_mm > 0)
+            for (int a = 0; a < 3; ++a) c[a] += float(rng->normal() * noise_mm);
+        in.centres[size_t(b)] = c;
+        float* px = in.x.data<float>() + b * 3 * M;
+        for (int m = 0; m < M; ++m) {
+            const size_t q = size_t(rng ? obj[rng->below(obj.size())]
+                                        : obj[size_t(int64_t(m) * int64_t(obj.size()) / M)]);
+            for (int a = 0; a < 3; ++a) px[a * M + m] = p.points[q * 3 + size_t(a)] - c[a];
+        }
+    }
+    return in;
+}
+
+double median(std::vector<double> v) {
+    if (v.empty()) return 0;
+    std::sort(v.begin(), v.end());
+    const size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+}  // namespace
+
+std::vector<RotStudyPoint> rot_study(const RotStudyConfig& cfg, int num_classes,
+                                     const KeypointTable& keypoints,
+                                     const std::vector<double>& diameters,
+                                     const SymmetricKeypoints* symmetric, const SampleDraw& draw,
+                                     const std::vector<PoseSample>& val,
+                                     const std::function<void(const RotStudyPoint&)>& on_point) {
+    G2L_CHECK(!val.empty(), "rot_study: empty validation set");
+    G2L_CHECK(cfg.steps > 0 && cfg.batch > 0 && cfg.points > 0 && cfg.eval_every > 0,
+              "rot_study: steps, batch, points and eval_every must be > 0");
+    G2L_CHECK(!keypoints.empty() && diameters.size() == keypoints.size(),
+              "rot_study: ", keypoints.size(), " keypoint sets and ", diameters.size(),
+              " diameters");
+    G2L_CHECK(!cfg.symmetric || symmetric, "rot_study: symmetric targets need symmetry tables");
+    const int K = int(keypoints[0].size());
+    nn::G2LConfig mc;
+    mc.num_classes = num_classes;
+    mc.num_keypoints = K;
+    mc.evf = cfg.evf;
+    mc.rre = cfg.rre;
+    mc.width = cfg.width;
+    mc.dropout = cfg.dropout;
+    mc.seed = cfg.seed;
+    mc.rot_unit = cfg.rot_unit;
+    mc.out_scale_mm = cfg.out_scale_mm;
+    nn::G2LNet net(mc);
+    net.apply([&](nn::Module& m) {
+        if (auto* bn = dynamic_cast<nn::BatchNorm*>(&m)) bn->momentum = cfg.bn_momentum;
+    });
+    std::vector<nn::ParamGroup> groups;
+    for (auto& g : net.param_groups({1, 1, cfg.mult_evf, cfg.mult_rot, cfg.mult_rre})) {
+        if (g.name == "seg" || g.name == "tnet") continue;
+        groups.push_back(std::move(g));
+    }
+    nn::AdamOptions ao;
+    ao.lr = cfg.lr;
+    ao.beta1 = 0.9;
+    ao.beta2 = 0.99;
+    nn::Adam adam(groups, ao);
+
+    StepOptions so;
+    for (const auto& kp : keypoints) so.rot_scale.push_back(float(nn::rotation_scale(cfg.rot_unit, kp)));
+    const SymmetricKeypoints* sym = cfg.symmetric ? symmetric : nullptr;
+
+    std::vector<RotStudyPoint> curve;
+    Rng rng(mix(cfg.seed, 0x5EED));
+    int64_t next_draw = 0, samples = 0;
+    double train_err_sum = 0;
+    int train_err_n = 0;
+    const auto t0 = Clock::now();
+    for (int step = 1; step <= cfg.steps; ++step) {
+        std::vector<PoseSample> batch;
+        int fails = 0;
+        while (int(batch.size()) < cfg.batch) {
+            PoseSample s;
+            if (draw(next_draw++, &s)) {
+                batch.push_back(std::move(s));
+                fails = 0;
+            } else {
+                G2L_CHECK(++fails < 1000, "rot_study: 1000 unusable draws in a row");
+            }
+        }
+        net.train();
+        adam.zero_grad();
+        const RotInput in = make_input(batch, cfg.points, num_classes, cfg.centre_noise_mm, &rng);
+        StepLosses L;
+        Tensor loss = rotation_losses(net, batch, in.x, in.object, in.centres, in.onehot,
+                                      keypoints, cfg.weights, sym, so, &L);
+        G2L_CHECK(std::isfinite(loss.item<double>()), "rot_study: non-finite loss at step ", step);
+        loss.backward();
+        adam.step();
+        samples += cfg.batch;
+        train_err_sum += L.kp_error_mm;
+        ++train_err_n;
+        if (step % cfg.eval_every != 0 && step != cfg.steps) continue;
+
+        // ---- validation (eval mode, deterministic points, GT centre) ----
+        RotStudyPoint pt;
+        pt.step = step;
+        pt.samples = samples;
+        pt.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+        pt.train_kp_err_mm = train_err_sum / std::max(1, train_err_n);
+        train_err_sum = 0;
+        train_err_n = 0;
+        net.eval();
+        autograd::NoGradGuard ng;
+        std::vector<double> rot_err;
+        double kp_err = 0, kp_frac = 0;
+        const int64_t chunk = 64;
+        for (size_t lo = 0; lo < val.size(); lo += chunk) {
+            const std::vector<PoseSample> vb(val.begin() + long(lo),
+                                             val.begin() + long(std::min(val.size(), lo + chunk)));
+            const RotInput in = make_input(vb, cfg.points, num_classes, 0, nullptr);
+            Tensor scale;
+            if (cfg.rot_unit != "mm") {
+                scale = Tensor::empty({int64_t(vb.size()), 1, 1});
+                for (size_t b = 0; b < vb.size(); ++b)
+                    scale.data<float>()[b] = so.rot_scale[size_t(vb[b].class_index)];
+            }
+            const nn::RotOut r = net.rot_forward(in.x, in.onehot, scale);
+            for (size_t b = 0; b < vb.size(); ++b) {
+                const PoseSample& s = vb[b];
+                const auto& kpm = keypoints[size_t(s.class_index)];
+                geom::Points P(K, 3), Q(K, 3);
+                for (int k = 0; k < K; ++k) {
+                    P.row(k) = kpm[size_t(k)].transpose();
+                    for (int c = 0; c < 3; ++c) Q(k, c) = r.keypoints.data<float>()[(b * K + k) * 3 + c];
+                }
+                Eigen::Matrix3d R = geom::kabsch(P, Q);
+                if (r.residual.defined()) {
+                    geom::Points Pc(K, 3);
+                    const Eigen::Vector3d cm = P.cast<double>().colwise().mean().transpose();
+                    const Eigen::Vector3d cq = Q.cast<double>().colwise().mean().transpose();
+                    for (int k = 0; k < K; ++k)
+                        for (int c = 0; c < 3; ++c)
+                            Pc(k, c) = float((R * (P.row(k).transpose().cast<double>() - cm) + cq)[c]) +
+                                       r.residual.data<float>()[(b * K + k) * 3 + c];
+                    Q = Pc;
+                    R = geom::kabsch(P, Pc);
+                }
+                // Errors against the GT keypoints (the nearest symmetric set when given).
+                const KeypointTable one{kpm};
+                const KeypointTable& sets = sym ? (*sym)[size_t(s.class_index)] : one;
+                double best_kp = -1, best_rot = 0;
+                for (const auto& set : sets) {
+                    double e = 0;
+                    for (int k = 0; k < K; ++k)
+                        e += double((s.R * set[size_t(k)] - Q.row(k).transpose()).norm());
+                    e /= K;
+                    if (best_kp < 0 || e < best_kp) {
+                        best_kp = e;
+                        // The symmetry's rotation: Kabsch of the identity set onto this set.
+                        geom::Points S(K, 3);
+                        for (int k = 0; k < K; ++k) S.row(k) = set[size_t(k)].transpose();
+                        const Eigen::Matrix3d Rs = geom::kabsch(P, S);
+                        best_rot = geom::rotation_error_deg(R, s.R.cast<double>() * Rs);
+                    }
+                }
+                kp_err += best_kp;
+                kp_frac += best_kp / diameters[size_t(s.class_index)];
+                rot_err.push_back(best_rot);
+            }
+        }
+        pt.val_kp_err_mm = kp_err / double(val.size());
+        pt.val_kp_err_frac = kp_frac / double(val.size());
+        pt.val_rot_err_deg_median = median(rot_err);
+        double sum = 0;
+        int under = 0;
+        for (double e : rot_err) sum += e, under += e < 10;
+        pt.val_rot_err_deg_mean = sum / double(rot_err.size());
+        pt.val_acc_10deg = double(under) / double(rot_err.size());
+        curve.push_back(pt);
+        if (on_point) on_point(pt);
+    }
+    return curve;
+}
+
+}  // namespace g2l::train

@@ -98,6 +98,11 @@ std::vector<RotStudyPoint> rot_study(const RotStudyConfig& cfg, int num_classes,
     mc.rot_unit = cfg.rot_unit;
     mc.out_scale_mm = cfg.out_scale_mm;
     nn::G2LNet net(mc);
+    if (cfg.zero_last_layers)
+        for (auto& [name, t] : net.named_parameters())
+            if (name.rfind("evf.out.", 0) == 0 || name.rfind("rot.out.", 0) == 0 ||
+                name.rfind("rre.out.", 0) == 0)
+                std::fill(t.data<float>(), t.data<float>() + t.numel(), 0.f);
     net.apply([&](nn::Module& m) {
         if (auto* bn = dynamic_cast<nn::BatchNorm*>(&m)) bn->momentum = cfg.bn_momentum;
     });

@@ -33,6 +33,9 @@ struct RotStudyConfig {
     double centre_noise_mm = 0;  ///< Gaussian centring error per axis (StepOptions)
     bool symmetric = false;    ///< min-over-symmetries targets (needs `symmetric` tables)
     uint64_t seed = 1;         ///< initialisation, point picks, batch order
+    /// Initialisation: false = PyTorch's default U(+-1/sqrt(fan_in)) everywhere; true = the
+    /// last layers of blocks A, B (and C) start at zero (the prediction starts at "zero").
+    bool zero_last_layers = false;
 };
 
 /// One point of a learning curve.

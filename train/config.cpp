@@ -338,6 +338,7 @@ void visit_config(IO& io, TrainConfig& c) {
         t.integer("max_val_samples", p.max_val_samples);
         t.num("time_limit_min", p.time_limit_min);
         t.integer("log_every", p.log_every);
+        t.boolean("prefetch", p.prefetch);
     });
 }
 

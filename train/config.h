@@ -127,6 +127,9 @@ struct LoopConfig {
     int64_t max_val_samples = 200;  ///< 0 = every validation sample
     double time_limit_min = 0;      ///< > 0: stop with a checkpoint after this many minutes
     int log_every = 10;             ///< steps between log lines
+    /// Make the next batch (render, crop, label) on a second thread while this one trains.
+    /// Never changes a result: a batch depends only on its position in the epoch's order.
+    bool prefetch = true;
 };
 
 /// Everything g2l_train reads from its config file.

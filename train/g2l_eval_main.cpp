@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
     std::vector<std::string> sets;
     int64_t max_instances = 0;
     double min_visib = 0.0;
+    int crop_points = -1, object_points = -1;
     app.add_option("--checkpoint", checkpoint, "a .g2l checkpoint written by g2l_train")->required();
     app.add_option("--config", config, "evaluate on this config's data.val BOP sources");
     app.add_option("--set", sets, "config overrides (as g2l_train)");
@@ -29,6 +30,14 @@ int main(int argc, char** argv) {
     app.add_option("--max-instances", max_instances, "evaluate at most this many instances")
         ->check(CLI::NonNegativeNumber);
     app.add_option("--min-visib", min_visib, "skip instances less visible than this fraction");
+    app.add_option("--crop-points", crop_points,
+                   "seg-net input points per crop (default: the checkpoint's sampling.points, as "
+                   "in training; 0 = the whole crop)")
+        ->check(CLI::NonNegativeNumber);
+    app.add_option("--object-points", object_points,
+                   "object points fed to the T-net and rotation blocks (default: the checkpoint's "
+                   "sampling.seg_points)")
+        ->check(CLI::PositiveNumber);
     CLI11_PARSE(app, argc, argv);
     if (config.empty() == root.empty()) {
         std::fprintf(stderr, "g2l_eval: give exactly one of --config or --root\n");
@@ -62,8 +71,8 @@ int main(int argc, char** argv) {
             g2l::train::EvalOptions eo;
             eo.crop = m.crop;
             eo.radius_scale = m.radius_scale;
-            eo.crop_points = m.points;
-            eo.max_object_points = m.seg_points;
+            eo.crop_points = crop_points >= 0 ? crop_points : m.points;
+            eo.max_object_points = object_points > 0 ? object_points : m.seg_points;
             eo.max_instances = max_instances;
             eo.min_visib_fract = min_visib;
             const auto r = g2l::train::evaluate_gt_boxes(*m.net, sets_to_eval[i].second, m.class_of,

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <memory>
 #include <nlohmann/json.hpp>
 
@@ -277,18 +278,40 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
         net.train();
         const auto t_epoch = Clock::now();
         int64_t tried = 0, failed = 0;
-        while (epoch_batches < batches_per_epoch && pos < int64_t(order.size())) {
+        // The batch starting at order position `from`; only this reads `sources`, and at most
+        // one call is in flight, so the prefetch thread and the serial path make the same
+        // batches (each sample depends only on its item and its own Rng).
+        struct Fetched {
             std::vector<PoseSample> batch;
-            while (int(batch.size()) < cfg.train.batch && pos < int64_t(order.size())) {
-                const Item it = order[size_t(pos++)];
+            int64_t pos_after = 0, tried = 0, failed = 0;
+        };
+        auto fetch = [&](int64_t from) {
+            Fetched f;
+            f.pos_after = from;
+            while (int(f.batch.size()) < cfg.train.batch && f.pos_after < int64_t(order.size())) {
+                const Item it = order[size_t(f.pos_after++)];
                 Rng srng(mix(mix(cfg.seed, uint64_t(epoch) * 7919 + uint64_t(it.source)),
                              uint64_t(it.index)));
                 PoseSample s;
-                ++tried;
-                if (sources.list[size_t(it.source)]->get(it.index, srng, &s)) batch.push_back(std::move(s));
-                else ++failed;
+                ++f.tried;
+                if (sources.list[size_t(it.source)]->get(it.index, srng, &s)) f.batch.push_back(std::move(s));
+                else ++f.failed;
             }
+            return f;
+        };
+        std::future<Fetched> ahead;
+        const bool prefetch = cfg.train.prefetch;
+        if (prefetch && epoch_batches < batches_per_epoch && pos < int64_t(order.size()))
+            ahead = std::async(std::launch::async, fetch, pos);
+        while (epoch_batches < batches_per_epoch && pos < int64_t(order.size())) {
+            Fetched got = prefetch ? ahead.get() : fetch(pos);
+            pos = got.pos_after;
+            tried += got.tried;
+            failed += got.failed;
+            std::vector<PoseSample> batch = std::move(got.batch);
             if (int(batch.size()) < cfg.train.batch) break;  // epoch exhausted
+            if (prefetch && epoch_batches + 1 < batches_per_epoch && pos < int64_t(order.size()))
+                ahead = std::async(std::launch::async, fetch, pos);
             G2L_CHECK(tried < 50 || failed * 10 < tried * 9, "training data: ", failed, " of ",
                       tried, " crops were unusable (too few points) — check the sources, "
                       "sampling.min_points and the depth data");

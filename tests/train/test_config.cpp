@@ -62,7 +62,8 @@ json everything() {
                 "lr_mult": {"seg": 2, "tnet": 3, "evf": 4, "rot": 5, "rre": 6}},
       "schedule": {"kind": "official", "step_epochs": 7, "gamma": 0.25},
       "train": {"epochs": 12, "batch": 4, "samples_per_epoch": 100, "checkpoint_every": 2,
-                "val_every": 3, "max_val_samples": 50, "time_limit_min": 1.5, "log_every": 5}
+                "val_every": 3, "max_val_samples": 50, "time_limit_min": 1.5, "log_every": 5,
+                "prefetch": false}
     })");
 }
 

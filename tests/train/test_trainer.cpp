@@ -108,6 +108,28 @@ TEST_CASE("g2l_train: stopping and resuming equals an uninterrupted run, bitwise
     REQUIRE(logged(a, "loss") == logged(b, "loss"));
 }
 
+TEST_CASE("g2l_train: making the next batch on a second thread changes nothing, bitwise",
+          "[train][trainer]") {
+    const std::string a = testing::temp_dir("prefetch_on"), b = testing::temp_dir("prefetch_off");
+    train::TrainOptions opt;
+    opt.progress = false;
+    auto ca = train::parse_config_text(tiny_config(a, 2, 16), "a.json");
+    auto cb = train::parse_config_text(tiny_config(b, 2, 16), "b.json");
+    REQUIRE(ca.train.prefetch);  // the default
+    cb.train.prefetch = false;
+    REQUIRE(train::run_training(ca, opt).steps == 8);
+    REQUIRE(train::run_training(cb, opt).steps == 8);
+    const Checkpoint ka = load_checkpoint(a + "/last.g2l"), kb = load_checkpoint(b + "/last.g2l");
+    REQUIRE(ka.tensors.size() == kb.tensors.size());
+    for (const auto& [name, t] : ka.tensors) {
+        INFO(name);
+        const Tensor& u = kb.tensors.at(name);
+        REQUIRE(std::memcmp(u.data(), t.data(), t.nbytes()) == 0);
+    }
+    REQUIRE(logged(a, "loss") == logged(b, "loss"));
+    REQUIRE(logged(a, "loss").size() == 8);
+}
+
 TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model; evaluation on real frames",
           "[train][eval]") {
     const std::string dir = testing::temp_dir("eval");

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <iostream>
 #include <random>
+#include <set>
 
 namespace fs = std::filesystem;
 
@@ -21,10 +22,24 @@ std::optional<std::string> shared_data_dir() {
     return std::nullopt;
 }
 
+namespace {
+std::set<std::string>& skipped_names() {
+    static std::set<std::string> s;
+    return s;
+}
+}  // namespace
+
+void mark_skipped(const std::string& why) {
+    std::cerr << "\n*** SKIPPED: " << why << " ***\n";
+    WARN("SKIPPED: " << why);
+    skipped_names().insert(Catch::getResultCapture().getCurrentTestName());
+}
+
+int skipped_cases() { return int(skipped_names().size()); }
+
 void skip_without_shared_data(const std::string& what) {
-    std::cerr << "\n*** SKIPPED: " << what << " needs ../shared/data (not found at "
-              << G2L_SHARED_DATA_DIR << "; set G2L_SHARED_DATA to point at it) ***\n";
-    WARN("SKIPPED (no ../shared/data): " << what);
+    mark_skipped(what + " needs ../shared/data (not found at " + G2L_SHARED_DATA_DIR +
+                 "; set G2L_SHARED_DATA to point at it)");
 }
 
 std::string temp_dir(const std::string& tag) {

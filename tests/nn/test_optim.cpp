@@ -68,23 +68,23 @@ TEST_CASE("adam: two steps match the hand-computed values (f64 and f32)", "[opti
         REQUIRE(p.is_leaf());
         REQUIRE(p.requires_grad());
         auto p1 = values(p);
-        CHECK(p1[0] == Approx(0.900000002).margin(tol));
-        CHECK(p1[1] == Approx(-1.900000001).margin(tol));
-        CHECK(p1[2] == Approx(0.4000000005).margin(tol));
+        CHECK(p1[0] == Approx(0.900000002).margin(tol).epsilon(0));
+        CHECK(p1[1] == Approx(-1.900000001).margin(tol).epsilon(0));
+        CHECK(p1[2] == Approx(0.4000000005).margin(tol).epsilon(0));
         set_grad(p, {1.0, 1.0, -1.0});
         adam.step();
         auto p2 = values(p);
-        CHECK(p2[0] == Approx(0.803481800638509).margin(tol));
-        CHECK(p2[1] == Approx(-1.90526315884211).margin(tol));
-        CHECK(p2[2] == Approx(0.373366296702432).margin(tol));
+        CHECK(p2[0] == Approx(0.803481800638509).margin(tol).epsilon(0));
+        CHECK(p2[1] == Approx(-1.90526315884211).margin(tol).epsilon(0));
+        CHECK(p2[2] == Approx(0.373366296702432).margin(tol).epsilon(0));
         CHECK(adam.step_count() == 2);
         // the moments are exposed through state_tensors()
         std::map<std::string, Tensor> st;
         for (auto& kv : adam.state_tensors()) st.emplace(kv.first, kv.second);
         auto m = values(st.at("adam.m.p")), v = values(st.at("adam.v.p"));
-        CHECK(m[0] == Approx(0.145).margin(tol));
-        CHECK(m[2] == Approx(0.08).margin(tol));
-        CHECK(v[1] == Approx(0.001999).margin(tol * 1e-2));
+        CHECK(m[0] == Approx(0.145).margin(tol).epsilon(0));
+        CHECK(m[2] == Approx(0.08).margin(tol).epsilon(0));
+        CHECK(v[1] == Approx(0.001999).margin(tol * 1e-2).epsilon(0));
         CHECK(st.at("adam.step.p").item<int32_t>() == 2);
     }
 }
@@ -104,7 +104,7 @@ TEST_CASE("adam: L2 weight decay and decoupled (AdamW) weight decay", "[optim]")
         adam.step();
         return values(p)[0];
     };
-    CHECK(one_step(false, 0.1) == Approx(9.9).margin(1e-8));
+    CHECK(one_step(false, 0.1) == Approx(9.9).margin(1e-8).epsilon(0));
     CHECK(one_step(true, 0.1) == Approx(10.0).margin(1e-8));
     CHECK(one_step(false, 0.0) == Approx(10.1).margin(1e-8));
     CHECK(one_step(true, 0.0) == Approx(10.1).margin(1e-8));
@@ -283,7 +283,7 @@ TEST_CASE("adam: the update does not depend on the OpenMP thread count", "[optim
     CHECK(one == two);
     CHECK(one != p0.to_vector<float>());
 #else
-    WARN("built without OpenMP: thread-count independence not checked");
+    testing::mark_skipped("built without OpenMP: thread-count independence not checked");
 #endif
 }
 

@@ -4,6 +4,8 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+
+#include "core/cli.h"
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -182,14 +184,12 @@ int main(int argc, char** argv) {
     app.add_option("--split", split, "split folder name");
     app.add_option("--scene-id", scene_id, "scene folder number")->check(CLI::Range(0, 999999));
     app.add_flag("--bench", bench, "time the renderer on a ~20k-triangle scene and exit");
-    try {
-        app.parse(argc, argv);
-        if (!bench && (model_args.empty() || out_dir.empty())) {
-            throw CLI::RequiredError("--models and --out (unless --bench)");
-        }
-    } catch (const CLI::ParseError& e) {
-        const int rc = app.exit(e);
-        return rc == 0 ? 0 : 2;
+    bool verbose = false;
+    app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
+    if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_render"); rc >= 0) return rc;
+    if (!bench && (model_args.empty() || out_dir.empty())) {
+        std::fprintf(stderr, "g2l_render: give --models and --out (unless --bench) (see g2l_render --help)\n");
+        return g2l::cli::kUsageError;
     }
     try {
         const bool seed_given = app.count("--seed") > 0;
@@ -232,7 +232,6 @@ int main(int argc, char** argv) {
         std::printf("wrote %lld frames to %s\n", (long long)frames, writer.dir().c_str());
         return 0;
     } catch (const std::exception& e) {
-        std::fprintf(stderr, "g2l_render: error: %s\n", e.what());
-        return 1;
+        return g2l::cli::report("g2l_render", e, verbose);
     }
 }

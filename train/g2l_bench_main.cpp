@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 // g2l_bench: prints the engine's speed on G2L-Net's shapes; --json prints one JSON object.
 #include <CLI/CLI.hpp>
+
+#include "core/cli.h"
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -25,7 +27,9 @@ int main(int argc, char** argv) {
         ->check(CLI::Range(0, 1000));
     app.add_option("--width", width, "G2L-Net width multiplier for the training figure")
         ->check(CLI::Range(0.01, 4.0));
-    CLI11_PARSE(app, argc, argv);
+    bool verbose = false;
+    app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
+    if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_bench"); rc >= 0) return rc;
     try {
         if (threads > 0) g2l::set_num_threads(threads);
         auto figs = g2l::train::bench_engine(reps, quick);
@@ -48,7 +52,6 @@ int main(int argc, char** argv) {
         }
         return 0;
     } catch (const std::exception& e) {
-        std::fprintf(stderr, "g2l_bench: error: %s\n", e.what());
-        return 1;
+        return g2l::cli::report("g2l_bench", e, verbose);
     }
 }

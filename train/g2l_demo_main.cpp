@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 // g2l_demo: the main job end to end on data embedded in the repository.
 #include <CLI/CLI.hpp>
+
+#include "core/cli.h"
 #include <cstdio>
 
 #include "core/threads.h"
@@ -13,7 +15,9 @@ int main(int argc, char** argv) {
     app.add_option("--steps", steps, "training steps")->check(CLI::Range(1, 1000000));
     app.add_option("--seed", seed, "random seed");
     app.add_option("--threads", threads, "CPU threads (0 = all cores)")->check(CLI::Range(0, 1024));
-    CLI11_PARSE(app, argc, argv);
+    bool verbose = false;
+    app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
+    if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_demo"); rc >= 0) return rc;
     try {
         if (threads > 0) g2l::set_num_threads(threads);
         g2l::train::ToyConfig cfg;
@@ -30,7 +34,6 @@ int main(int argc, char** argv) {
                     100 * r.test_accuracy);
         return r.test_accuracy > 0.9 ? 0 : 1;
     } catch (const std::exception& e) {
-        std::fprintf(stderr, "g2l_demo: error: %s\n", e.what());
-        return 1;
+        return g2l::cli::report("g2l_demo", e, verbose);
     }
 }

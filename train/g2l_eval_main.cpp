@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 // g2l_eval: the pose stage of G2L-Net with ground-truth 2D boxes over a BOP split.
 #include <CLI/CLI.hpp>
+
+#include "core/cli.h"
 #include <cstdio>
 #include <fstream>
 
@@ -28,17 +30,19 @@ int main(int argc, char** argv) {
         ->check(CLI::IsMember({"gt"}));
     app.add_option("--json", json_out, "also write the figures as JSON to this file");
     app.add_option("--max-instances", max_instances, "evaluate at most this many instances")
-        ->check(CLI::NonNegativeNumber);
+        ->check(g2l::cli::at_least(0));
     app.add_option("--min-visib", min_visib, "skip instances less visible than this fraction");
     app.add_option("--crop-points", crop_points,
                    "seg-net input points per crop (default: the checkpoint's sampling.points, as "
                    "in training; 0 = the whole crop)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(g2l::cli::at_least(0));
     app.add_option("--object-points", object_points,
                    "object points fed to the T-net and rotation blocks (default: the checkpoint's "
                    "sampling.seg_points)")
-        ->check(CLI::PositiveNumber);
-    CLI11_PARSE(app, argc, argv);
+        ->check(g2l::cli::at_least(1));
+    bool verbose = false;
+    app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
+    if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_eval"); rc >= 0) return rc;
     if (config.empty() == root.empty()) {
         std::fprintf(stderr, "g2l_eval: give exactly one of --config or --root\n");
         return 2;
@@ -89,7 +93,6 @@ int main(int argc, char** argv) {
         }
         return 0;
     } catch (const std::exception& e) {
-        std::fprintf(stderr, "g2l_eval: error: %s\n", e.what());
-        return 1;
+        return g2l::cli::report("g2l_eval", e, verbose);
     }
 }

@@ -2,6 +2,8 @@
 // g2l_rotstudy: learning curves of G2L-Net's rotation blocks alone (keypoint error on renders
 // against samples seen), one factor at a time. docs/experiments.md lists the runs.
 #include <CLI/CLI.hpp>
+
+#include "core/cli.h"
 #include <cstdio>
 #include <fstream>
 #include <map>
@@ -63,7 +65,9 @@ int main(int argc, char** argv) {
     app.add_option("--zero-last", c.zero_last_layers, "zero-initialise the last layers of A/B/C (1/0)");
     app.add_option("--threads", threads, "CPU threads (0 = all)");
     app.add_option("--json", out_json, "write the curve as JSON here");
-    CLI11_PARSE(app, argc, argv);
+    bool verbose = false;
+    app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
+    if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_rotstudy"); rc >= 0) return rc;
     try {
         if (threads > 0) set_num_threads(threads);
         data::BopOptions bo;
@@ -164,7 +168,6 @@ int main(int argc, char** argv) {
         if (!out_json.empty()) std::ofstream(out_json) << curve.dump(1) << "\n";
         return 0;
     } catch (const std::exception& e) {
-        std::fprintf(stderr, "g2l_rotstudy: %s\n", e.what());
-        return 1;
+        return g2l::cli::report("g2l_rotstudy", e, verbose);
     }
 }

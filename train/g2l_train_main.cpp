@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 // g2l_train: trains G2L-Net from a JSON config (docs/config.md).
 #include <CLI/CLI.hpp>
+
+#include "core/cli.h"
 #include <cstdio>
 
 #include "train/config.h"
@@ -23,13 +25,18 @@ int main(int argc, char** argv) {
                                         "stopped (uses its config.json unless --config is given)");
     app.add_option("--max-steps", max_steps, "stop with a checkpoint after this many optimizer "
                                              "steps in total (0 = train to the end)")
-        ->check(CLI::NonNegativeNumber);
-    app.add_flag("--quiet", quiet, "no progress output");
+        ->check(g2l::cli::at_least(0));
+    app.add_flag("--quiet", quiet, "no progress output (errors still go to stderr)");
+    bool force = false;
+    app.add_flag("--force", force, "start over in a run directory that already holds a run "
+                                   "(without it such a directory is refused; see --resume)");
     app.add_option("--export", export_args,
                    "CHECKPOINT OUT: write an inference export of a training checkpoint (weights, "
                    "model config, object ids, keypoints; no optimizer state) and exit")
         ->expected(2);
-    CLI11_PARSE(app, argc, argv);
+    bool verbose = false;
+    app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
+    if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_train"); rc >= 0) return rc;
     if (!export_args.empty()) {
         try {
             const int64_t bytes = g2l::train::export_model(export_args[0], export_args[1]);
@@ -37,8 +44,7 @@ int main(int argc, char** argv) {
                         export_args[1].c_str(), double(bytes) / 1e6);
             return 0;
         } catch (const std::exception& e) {
-            std::fprintf(stderr, "g2l_train: error: %s\n", e.what());
-            return 1;
+            return g2l::cli::report("g2l_train", e, verbose);
         }
     }
     if (config.empty() && resume.empty()) {
@@ -53,15 +59,16 @@ int main(int argc, char** argv) {
         opt.resume_dir = resume;
         opt.max_steps = max_steps;
         opt.progress = !quiet;
+        opt.force = force;
         const auto s = g2l::train::run_training(cfg, opt);
-        std::printf("g2l_train: %s after %lld steps (%d epochs), %.2f samples/s; best val ADD-sym acc@0.1d "
+        if (!quiet)
+            std::printf("g2l_train: %s after %lld steps (%d epochs), %.2f samples/s; best val ADD-sym acc@0.1d "
                     "%s; run dir %s\n",
                     s.stopped_early ? "stopped" : "finished", (long long)s.steps, s.epochs_done,
                     s.samples_per_s, s.best_val >= 0 ? std::to_string(s.best_val).c_str() : "n/a",
                     s.run_dir.c_str());
         return 0;
     } catch (const std::exception& e) {
-        std::fprintf(stderr, "g2l_train: error: %s\n", e.what());
-        return 1;
+        return g2l::cli::report("g2l_train", e, verbose);
     }
 }

@@ -80,7 +80,7 @@ void add_models(RunData& rd, const data::Dataset& ds) {
     }
 }
 
-RunData prepare_data(const TrainConfig& cfg) {
+RunData prepare_data(const TrainConfig& cfg, bool verbose) {
     RunData rd;
     for (size_t i = 0; i < cfg.data.object_ids.size(); ++i)
         rd.class_of[cfg.data.object_ids[i]] = int(i);
@@ -134,8 +134,9 @@ RunData prepare_data(const TrainConfig& cfg) {
                 for (const auto& p : rd.keypoints[size_t(cls)]) set.push_back(s.R * p + s.t);
                 rd.sym_keypoints[size_t(cls)].push_back(std::move(set));
             }
-            std::printf("object %d: %zu geometric symmetr%s (rotation targets take the nearest)\n",
-                        id, syms.size(), syms.size() == 1 ? "y" : "ies");
+            if (verbose)
+                std::printf("object %d: %zu geometric symmetr%s (rotation targets take the nearest)\n",
+                            id, syms.size(), syms.size() == 1 ? "y" : "ies");
         }
         std::fflush(stdout);
     }
@@ -208,7 +209,32 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
     if (cfg.threads > 0) set_num_threads(cfg.threads);
     G2L_CHECK(parse_device(cfg.device).is_cpu(), "device '", cfg.device,
               "': training runs on the CPU in this version (the CUDA backend is not complete)");
-    RunData rd = prepare_data(cfg);
+    // ---- the run directory first: a bad one is found before any data is read ----
+    const std::string run_dir = opt.resume_dir.empty() ? cfg.run_dir : opt.resume_dir;
+    G2L_CHECK(!run_dir.empty(), "run_dir is empty");
+    if (opt.resume_dir.empty()) {
+        std::error_code ec;
+        for (const char* f : {"config.json", "steps.jsonl", "last.g2l"})
+            G2L_CHECK(opt.force || !fs::exists(fs::path(run_dir) / f, ec), "run directory '",
+                      run_dir, "' already holds a run (", f, "): continue it with --resume ",
+                      run_dir, ", or start over with --force");
+    } else {
+        G2L_CHECK(fs::is_regular_file(fs::path(run_dir) / "last.g2l"), "--resume '", run_dir,
+                  "': no last.g2l there (not a run directory, or the run never saved)");
+    }
+    {
+        std::error_code ec;
+        fs::create_directories(run_dir, ec);
+        G2L_CHECK(!ec && fs::is_directory(run_dir), "cannot create the run directory '", run_dir,
+                  "': ", ec ? ec.message() : std::string("not a directory"));
+        const fs::path probe = fs::path(run_dir) / ".write_test";
+        std::ofstream t(probe);
+        t << "ok";
+        t.close();
+        G2L_CHECK(t.good(), "the run directory '", run_dir, "' is not writable");
+        fs::remove(probe, ec);
+    }
+    RunData rd = prepare_data(cfg, opt.progress);
     G2L_CHECK(!rd.train.empty(), "data.train: no training source configured");
 
     nn::G2LConfig mc = model_config(cfg, rd.keypoints.empty() ? 8 : int(rd.keypoints[0].size()));
@@ -232,9 +258,7 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
     so.centre_noise_mm = cfg.loss.rot_centre_noise_mm;
     so.centre_with_prediction = cfg.loss.rot_centre == "pred";
 
-    // ---- run directory and resume state ----
-    const std::string run_dir = opt.resume_dir.empty() ? cfg.run_dir : opt.resume_dir;
-    fs::create_directories(run_dir);
+    // ---- resume state ----
     int epoch = 0;
     int64_t pos = 0, global_step = 0, epoch_batches = 0;
     double epoch_loss = 0, best_val = -1;
@@ -245,15 +269,24 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
         epoch = st.epoch; pos = st.pos; global_step = st.global_step;
         epoch_batches = st.epoch_batches; epoch_loss = st.epoch_loss; best_val = st.best_val;
         seconds_before = st.seconds;
+        G2L_CHECK(epoch < cfg.train.epochs, "--resume '", run_dir, "': the run already finished its ",
+                  cfg.train.epochs, " epochs (", global_step, " steps); to train on, resume with "
+                  "--set train.epochs=N (N > ", cfg.train.epochs, ")");
         truncate_jsonl(fs::path(run_dir) / "steps.jsonl", "step", global_step);
         truncate_jsonl(fs::path(run_dir) / "epochs.jsonl", "epoch", epoch - 1);
     } else {
-        std::ofstream(fs::path(run_dir) / "config.json") << config_to_json(cfg) << "\n";
-        std::ofstream(fs::path(run_dir) / "steps.jsonl", std::ios::trunc);
-        std::ofstream(fs::path(run_dir) / "epochs.jsonl", std::ios::trunc);
+        std::ofstream c(fs::path(run_dir) / "config.json");
+        c << config_to_json(cfg) << "\n";
+        c.close();
+        G2L_CHECK(c.good(), "cannot write '", (fs::path(run_dir) / "config.json").string(), "'");
+        for (const char* f : {"steps.jsonl", "epochs.jsonl"}) {
+            std::ofstream t(fs::path(run_dir) / f, std::ios::trunc);
+            G2L_CHECK(t.good(), "cannot write '", (fs::path(run_dir) / f).string(), "'");
+        }
     }
     std::ofstream steps_log(fs::path(run_dir) / "steps.jsonl", std::ios::app);
     std::ofstream epochs_log(fs::path(run_dir) / "epochs.jsonl", std::ios::app);
+    G2L_CHECK(steps_log.good() && epochs_log.good(), "cannot append to the logs in '", run_dir, "'");
     const bool tty = opt.progress && isatty(fileno(stdout));
 
     TrainSummary sum;
@@ -348,6 +381,7 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                           {"step_s", dt}};
                 steps_log << j.dump() << "\n";
                 steps_log.flush();
+                G2L_CHECK(steps_log.good(), "cannot write '", run_dir, "/steps.jsonl' (disk full?)");
             }
             const double elapsed = std::chrono::duration<double>(Clock::now() - t_start).count();
             const double sps = samples_done / std::max(1e-9, elapsed);
@@ -419,7 +453,9 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
         }
         epochs_log << ej.dump() << "\n";
         epochs_log.flush();
-        std::printf("epoch %d/%d done: loss %.4f%s\n", epoch + 1, cfg.train.epochs,
+        G2L_CHECK(epochs_log.good(), "cannot write '", run_dir, "/epochs.jsonl' (disk full?)");
+        if (opt.progress)
+            std::printf("epoch %d/%d done: loss %.4f%s\n", epoch + 1, cfg.train.epochs,
                     epoch_batches ? epoch_loss / epoch_batches : 0.0,
                     val_auc >= 0 ? (" val ADD-sym acc@0.1d " + std::to_string(val_auc)).c_str() : "");
         std::fflush(stdout);

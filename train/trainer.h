@@ -13,7 +13,10 @@ namespace g2l::train {
 struct TrainOptions {
     std::string resume_dir;   ///< continue the run in this directory (its last.g2l)
     int64_t max_steps = 0;    ///< stop (with a checkpoint) after this many global steps; 0 = none
-    bool progress = true;     ///< progress bar on a terminal / plain lines otherwise
+    bool progress = true;     ///< progress bar on a terminal / plain lines otherwise; false: silent
+    /// Start over in a run directory that already holds a run (config.json, steps.jsonl or
+    /// last.g2l). Without it (and without resume_dir) such a directory is refused.
+    bool force = false;
 };
 
 struct TrainSummary {

@@ -184,11 +184,21 @@ int main(int argc, char** argv) {
     app.add_option("--split", split, "split folder name");
     app.add_option("--scene-id", scene_id, "scene folder number")->check(CLI::Range(0, 999999));
     app.add_flag("--bench", bench, "time the renderer on a ~20k-triangle scene and exit");
+    bool force = false;
+    app.add_flag("--force", force, "replace an existing <out>/<split>/<scene> folder (without it "
+                                   "an existing non-empty scene folder is refused)");
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_render"); rc >= 0) return rc;
     if (!bench && (model_args.empty() || out_dir.empty())) {
         std::fprintf(stderr, "g2l_render: give --models and --out (unless --bench) (see g2l_render --help)\n");
+        return g2l::cli::kUsageError;
+    }
+    // The split is one folder name inside --out: no path separators, no "." / "..".
+    if (split.empty() || split == "." || split == ".." ||
+        split.find_first_of("/\\") != std::string::npos) {
+        std::fprintf(stderr, "g2l_render: --split must be a plain folder name, got '%s' (see "
+                             "g2l_render --help)\n", split.c_str());
         return g2l::cli::kUsageError;
     }
     try {
@@ -208,7 +218,14 @@ int main(int argc, char** argv) {
         data::write_bop_models((root / "models").string(), sm);
         char scene_name[16];
         std::snprintf(scene_name, sizeof scene_name, "%06d", scene_id);
-        data::BopSceneWriter writer((root / split / scene_name).string());
+        const fs::path scene_dir = root / split / scene_name;
+        if (fs::exists(scene_dir) && !fs::is_empty(scene_dir)) {
+            G2L_CHECK(force, "'", scene_dir.string(), "' already holds a rendered scene: its images "
+                      "would mix with the new ones; choose another --out / --split / --scene-id, "
+                      "or replace it with --force");
+            fs::remove_all(scene_dir);
+        }
+        data::BopSceneWriter writer(scene_dir.string());
         data::write_file_atomic((root / split / scene_name / "scene_config.json").string(),
                                 data::scene_config_to_json(cfg) + "\n");
 

@@ -59,4 +59,16 @@ has "cannot create the run directory"
 mkdir "$T/empty"
 expect 1 "$B/train/g2l_train" --resume "$T/empty"
 has "config.json"
+
+# g2l_render: the split stays inside --out; an existing scene is not silently mixed with a new one.
+M="$S/tests/data/ycbv_mini/models"
+expect 2 "$B/data/g2l_render" --models "$M" --out "$T/r" --frames 1 --split ../../escape
+has "plain folder name"
+[ ! -e "$T/escape" ] && [ ! -e "$T/../escape" ] || fail "--split escaped --out"
+expect 0 "$B/data/g2l_render" --models "$M" --out "$T/r" --frames 2 --threads 1
+[ -f "$T/r/train_synt/000000/rgb/000001.png" ] || fail "no frame 1 rendered"
+expect 1 "$B/data/g2l_render" --models "$M" --out "$T/r" --frames 1 --threads 1
+has "already holds a rendered scene"
+expect 0 "$B/data/g2l_render" --models "$M" --out "$T/r" --frames 1 --threads 1 --force
+[ ! -e "$T/r/train_synt/000000/rgb/000001.png" ] || fail "a stale frame survived --force"
 echo "cli: every check passed"

@@ -31,7 +31,10 @@ int main(int argc, char** argv) {
     app.add_option("--json", json_out, "also write the figures as JSON to this file");
     app.add_option("--max-instances", max_instances, "evaluate at most this many instances")
         ->check(g2l::cli::at_least(0));
-    app.add_option("--min-visib", min_visib, "skip instances less visible than this fraction");
+    app.add_option("--min-visib", min_visib, "skip instances less visible than this fraction "
+                                             "(default: 0 with --root, the source's "
+                                             "min_visib_fract with --config)")
+        ->check(CLI::Range(0.0, 1.0));
     app.add_option("--crop-points", crop_points,
                    "seg-net input points per crop (default: the checkpoint's sampling.points, as "
                    "in training; 0 = the whole crop)")
@@ -44,18 +47,35 @@ int main(int argc, char** argv) {
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_eval"); rc >= 0) return rc;
     if (config.empty() == root.empty()) {
-        std::fprintf(stderr, "g2l_eval: give exactly one of --config or --root\n");
-        return 2;
+        std::fprintf(stderr, "g2l_eval: give exactly one of --config or --root (see g2l_eval --help)\n");
+        return g2l::cli::kUsageError;
+    }
+    // --set changes the config's evaluation sources (data.val.*); nothing else of a training
+    // config affects evaluation (the crop and point counts come from the checkpoint).
+    if (!sets.empty() && config.empty()) {
+        std::fprintf(stderr, "g2l_eval: --set needs --config (it overrides the config's data.val "
+                             "sources; with --root there is no config)\n");
+        return g2l::cli::kUsageError;
+    }
+    for (const auto& s : sets) {
+        if (s.rfind("data.val", 0) != 0) {
+            std::fprintf(stderr, "g2l_eval: --set '%s' has no effect on evaluation: only data.val.* "
+                                 "keys apply (the crop and point counts are the checkpoint's; see "
+                                 "--crop-points / --object-points)\n", s.c_str());
+            return g2l::cli::kUsageError;
+        }
     }
     try {
         g2l::train::LoadedModel m = g2l::train::load_model(checkpoint);
         std::vector<std::pair<std::string, g2l::data::BopDataset>> sets_to_eval;
+        std::vector<double> set_min_visib;  // per set: --min-visib, else the source's
         std::vector<int> ids;
         for (const auto& p : m.class_of) ids.push_back(p.first);
         if (!root.empty()) {
             g2l::data::BopOptions o;
             o.obj_ids = ids;
             sets_to_eval.emplace_back(root + "/" + split, g2l::data::open_bop(root, split, o));
+            set_min_visib.push_back(min_visib);
         } else {
             const auto cfg = g2l::train::load_config(config, sets);
             for (const auto& s : cfg.data.val) {
@@ -64,10 +84,11 @@ int main(int argc, char** argv) {
                 o.scenes = s.scenes;
                 o.obj_ids = s.objects.empty() ? ids : s.objects;
                 sets_to_eval.emplace_back(s.root + "/" + s.split, g2l::data::open_bop(s.root, s.split, o));
+                set_min_visib.push_back(app.count("--min-visib") ? min_visib : s.min_visib_fract);
             }
             if (sets_to_eval.empty()) {
                 std::fprintf(stderr, "g2l_eval: %s has no BOP source in data.val\n", config.c_str());
-                return 2;
+                return g2l::cli::kRunError;
             }
         }
         std::string json_all = "[";
@@ -78,7 +99,17 @@ int main(int argc, char** argv) {
             eo.crop_points = crop_points >= 0 ? crop_points : m.points;
             eo.max_object_points = object_points > 0 ? object_points : m.seg_points;
             eo.max_instances = max_instances;
-            eo.min_visib_fract = min_visib;
+            eo.min_visib_fract = set_min_visib[i];
+            if (eo.min_visib_fract > 0) {
+                bool annotated = false;
+                for (const auto& f : sets_to_eval[i].second.frames())
+                    for (const auto& inst : f.instances) annotated |= inst.visib_fract >= 0;
+                if (!annotated)
+                    std::fprintf(stderr, "g2l_eval: note: min visible fraction %g has no effect on "
+                                         "%s: it has no visib_fract annotations (every instance is "
+                                         "evaluated)\n", eo.min_visib_fract,
+                                 sets_to_eval[i].first.c_str());
+            }
             const auto r = g2l::train::evaluate_gt_boxes(*m.net, sets_to_eval[i].second, m.class_of,
                                                          m.keypoints, eo);
             std::printf("## %s (GT boxes, %s crop)\n\n%s\n", sets_to_eval[i].first.c_str(),

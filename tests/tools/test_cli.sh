@@ -43,6 +43,11 @@ has "failed at"
 expect 1 "$B/train/g2l_eval" --checkpoint "$T/none.g2l" --root "$S/tests/data/ycbv_mini" --split train_real
 has "none.g2l"
 hasnt "failed at"
+# g2l_eval: --set keys that cannot affect evaluation are refused, not ignored.
+expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --root r --set anything=1
+has "needs --config"
+expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --config "$S/configs/demo_cpu.json" --set model.width=1
+has "no effect on evaluation"
 
 # A run directory that already holds a run is refused (no --force / --resume).
 mkdir "$T/run"

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 // g2l_train: trains G2L-Net from a JSON config (docs/config.md).
 #include <CLI/CLI.hpp>
+#include <atomic>
+#include <csignal>
 
 #include "core/cli.h"
 #include <cstdio>
@@ -8,6 +10,16 @@
 #include "train/config.h"
 #include "train/model_io.h"
 #include "train/trainer.h"
+
+namespace {
+// SIGINT / SIGTERM: the trainer finishes its step, writes last.g2l and returns.
+std::atomic<bool> g_stop{false};
+volatile std::sig_atomic_t g_signal = 0;
+extern "C" void on_signal(int sig) {
+    g_signal = sig;
+    g_stop.store(true);
+}
+}  // namespace
 
 int main(int argc, char** argv) {
     CLI::App app{"g2l_train: trains G2L-Net (segmentation, translation and rotation networks) "
@@ -60,7 +72,17 @@ int main(int argc, char** argv) {
         opt.max_steps = max_steps;
         opt.progress = !quiet;
         opt.force = force;
+        opt.stop_flag = &g_stop;
+        std::signal(SIGINT, on_signal);
+        std::signal(SIGTERM, on_signal);
         const auto s = g2l::train::run_training(cfg, opt);
+        if (s.interrupted) {
+            std::fprintf(stderr, "g2l_train: %s after step %lld: checkpoint written, continue with "
+                                 "--resume %s\n", g_signal == SIGINT ? "interrupted (SIGINT)"
+                                                                       : "terminated (SIGTERM)",
+                         (long long)s.steps, s.run_dir.c_str());
+            return 128 + int(g_signal);
+        }
         if (!quiet)
             std::printf("g2l_train: %s after %lld steps (%d epochs), %.2f samples/s; best val ADD-sym acc@0.1d "
                     "%s; run dir %s\n",

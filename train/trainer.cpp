@@ -221,6 +221,12 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
     } else {
         G2L_CHECK(fs::is_regular_file(fs::path(run_dir) / "last.g2l"), "--resume '", run_dir,
                   "': no last.g2l there (not a run directory, or the run never saved)");
+        // Leftovers of a checkpoint write that a kill interrupted (<name>.g2l.tmp.<pid>): the
+        // file they were to replace is intact (writes are atomic renames).
+        std::error_code ec;
+        for (const auto& e : fs::directory_iterator(run_dir, ec))
+            if (e.path().filename().string().find(".g2l.tmp.") != std::string::npos)
+                fs::remove(e.path(), ec);
     }
     {
         std::error_code ec;
@@ -410,6 +416,7 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                 std::fflush(stdout);
             }
             if (opt.max_steps > 0 && global_step >= opt.max_steps) stop = true;
+            if (opt.stop_flag && opt.stop_flag->load()) stop = sum.interrupted = true;
             if (cfg.train.time_limit_min > 0 && run_seconds > cfg.train.time_limit_min * 60)
                 stop = true;
             if (stop) break;
@@ -424,7 +431,7 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
         json ej = {{"epoch", epoch}, {"loss", epoch_batches ? epoch_loss / epoch_batches : 0.0},
                    {"batches", epoch_batches}, {"lr", adam.lr()},
                    {"seconds", std::chrono::duration<double>(Clock::now() - t_epoch).count()}};
-        const bool do_val = !rd.val.empty() && cfg.train.val_every > 0 &&
+        const bool do_val = !sum.interrupted && !rd.val.empty() && cfg.train.val_every > 0 &&
                             ((epoch + 1) % cfg.train.val_every == 0 || epoch + 1 == cfg.train.epochs);
         double val_auc = -1;
         if (do_val) {

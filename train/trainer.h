@@ -3,6 +3,8 @@
 // directory (effective config, JSONL logs, atomic checkpoints) and exact resume.
 #pragma once
 
+#include <atomic>
+
 #include <cstdint>
 #include <string>
 
@@ -17,6 +19,9 @@ struct TrainOptions {
     /// Start over in a run directory that already holds a run (config.json, steps.jsonl or
     /// last.g2l). Without it (and without resume_dir) such a directory is refused.
     bool force = false;
+    /// When set and it becomes true (e.g. from a SIGINT/SIGTERM handler), the run stops after
+    /// the current step with a checkpoint (last.g2l), as with max_steps.
+    const std::atomic<bool>* stop_flag = nullptr;
 };
 
 struct TrainSummary {
@@ -26,7 +31,8 @@ struct TrainSummary {
     double last_loss = 0;        ///< mean total loss of the last epoch (or partial epoch)
     double best_val = -1;        ///< best validation ADD-S AUC (-1 = no validation ran)
     double samples_per_s = 0;    ///< training throughput of this invocation
-    bool stopped_early = false;  ///< max_steps or time limit reached
+    bool stopped_early = false;  ///< max_steps or time limit reached, or stop_flag raised
+    bool interrupted = false;    ///< stop_flag raised
 };
 
 /// Trains as configured. Writes <run_dir>/config.json, steps.jsonl, epochs.jsonl, and

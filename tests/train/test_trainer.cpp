@@ -130,6 +130,31 @@ TEST_CASE("g2l_train: making the next batch on a second thread changes nothing, 
     REQUIRE(logged(a, "loss").size() == 8);
 }
 
+TEST_CASE("g2l_train: 1 and 2 threads give bitwise identical checkpoints", "[train][trainer]") {
+#ifndef _OPENMP
+    testing::mark_skipped("built without OpenMP: one thread count only");
+    return;
+#else
+    const std::string a = testing::temp_dir("threads1"), b = testing::temp_dir("threads2");
+    train::TrainOptions opt;
+    opt.progress = false;
+    auto ca = train::parse_config_text(tiny_config(a, 1, 16), "a.json");
+    auto cb = train::parse_config_text(tiny_config(b, 1, 16), "b.json");
+    ca.threads = 1;
+    cb.threads = 2;
+    REQUIRE(train::run_training(ca, opt).steps == 4);
+    REQUIRE(train::run_training(cb, opt).steps == 4);
+    const Checkpoint ka = load_checkpoint(a + "/last.g2l"), kb = load_checkpoint(b + "/last.g2l");
+    REQUIRE(ka.tensors.size() == kb.tensors.size());
+    for (const auto& [name, t] : ka.tensors) {
+        INFO(name);
+        const Tensor& u = kb.tensors.at(name);
+        REQUIRE(std::memcmp(u.data(), t.data(), t.nbytes()) == 0);
+    }
+    REQUIRE(logged(a, "loss") == logged(b, "loss"));
+#endif
+}
+
 TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model; evaluation on real frames",
           "[train][eval]") {
     const std::string dir = testing::temp_dir("eval");

@@ -99,7 +99,8 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
     const bool was_training = net.is_training();
     net.eval();
     autograd::NoGradGuard no_grad;
-    std::map<int, Acc> acc;
+    std::vector<InstanceResult> results;
+    std::map<int, ObjectMeta> meta;
     std::map<int, ObjGeom> model_geom;
     EvalReport rep;
     double t_crop = 0, t_seg = 0, t_t = 0, t_rot = 0;
@@ -126,8 +127,11 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
                 g.syms = geom::geometric_symmetries(geom::ModelKdTree::from_mesh(mesh), om.info);
                 model_geom[inst.obj_id] = std::move(g);
             }
-            Acc& a = acc[inst.obj_id];
-            a.count++;
+            if (!meta.count(inst.obj_id))
+                meta[inst.obj_id] = {om.name, om.info.diameter, om.info.symmetric,
+                                     int(std::max<size_t>(1, model_geom[inst.obj_id].syms.size()))};
+            InstanceResult res;
+            res.obj_id = inst.obj_id;
             rep.instances++;
             const auto t0 = Clock::now();
             const geom::Box2i box = clip(inst.bbox_visib.empty() ? inst.bbox_obj : inst.bbox_visib, w, h);
@@ -156,37 +160,69 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
                                         opt.max_object_points, opt.crop_points);
             t_seg += est.ms_seg; t_t += est.ms_t; t_rot += est.ms_rot;
             if (!est.ok) {
-                a.misses++;
-                a.rot_sym.push_back(180.0);
-                a.adds_m.push_back(std::numeric_limits<double>::infinity());
-                a.add_m.push_back(std::numeric_limits<double>::infinity());
+                results.push_back(res);
                 continue;
             }
             const ObjGeom& og = model_geom[inst.obj_id];
             const geom::Points& mp = og.pts;
-            const double e_add = geom::add(est.pose, inst.pose, mp);
-            const double e_adds = geom::adds(est.pose, inst.pose, mp);
+            res.found = true;
+            res.add_mm = geom::add(est.pose, inst.pose, mp);
+            res.adds_mm = geom::adds(est.pose, inst.pose, mp);
             // Modulo the geometric symmetries S: the GT pose composed with S is as right.
-            const double e_sym = geom::add_sym(est.pose, inst.pose, mp, og.syms);
-            const double r_sym = geom::rotation_error_sym_deg(est.pose.R, inst.pose.R, og.syms);
-            a.correct_adds += geom::correct_at(e_adds, om.info.diameter);
-            a.correct_sym += geom::correct_at(e_sym, om.info.diameter);
-            a.rot_sym.push_back(r_sym);
-            a.trans_all.push_back(geom::translation_error(est.pose.t, inst.pose.t));
-            a.add_m.push_back(e_add / 1000.0);
-            a.adds_m.push_back(e_adds / 1000.0);
-            a.correct += geom::correct_at(om.info.symmetric ? e_adds : e_add, om.info.diameter);
-            a.found++;
-            a.rot += geom::rotation_error_deg(est.pose.R, inst.pose.R);
-            a.trans += geom::translation_error(est.pose.t, inst.pose.t);
+            res.addsym_mm = geom::add_sym(est.pose, inst.pose, mp, og.syms);
+            res.rot_sym_deg = geom::rotation_error_sym_deg(est.pose.R, inst.pose.R, og.syms);
+            res.rot_deg = geom::rotation_error_deg(est.pose.R, inst.pose.R);
+            res.trans_mm = geom::translation_error(est.pose.t, inst.pose.t);
+            results.push_back(res);
         }
     }
+    const double n_inst = rep.instances;
+    rep = aggregate(results, meta);
+    if (n_inst > 0) {
+        rep.ms_crop = t_crop / n_inst; rep.ms_seg = t_seg / n_inst;
+        rep.ms_t = t_t / n_inst; rep.ms_rot = t_rot / n_inst;
+    }
+    net.train(was_training);
+    return rep;
+}
+
+EvalReport aggregate(const std::vector<InstanceResult>& results,
+                     const std::map<int, ObjectMeta>& meta) {
+    std::map<int, Acc> acc;
+    for (const InstanceResult& r : results) {
+        const auto m = meta.find(r.obj_id);
+        G2L_CHECK(m != meta.end(), "aggregate: no object meta for obj_id ", r.obj_id);
+        G2L_CHECK(m->second.diameter > 0, "aggregate: object ", r.obj_id, " has diameter ",
+                  m->second.diameter);
+        Acc& a = acc[r.obj_id];
+        a.count++;
+        if (!r.found) {
+            a.misses++;
+            a.rot_sym.push_back(180.0);
+            a.adds_m.push_back(std::numeric_limits<double>::infinity());
+            a.add_m.push_back(std::numeric_limits<double>::infinity());
+            continue;
+        }
+        const double d = m->second.diameter;
+        a.correct_adds += geom::correct_at(r.adds_mm, d);
+        a.correct_sym += geom::correct_at(r.addsym_mm, d);
+        a.rot_sym.push_back(r.rot_sym_deg);
+        a.trans_all.push_back(r.trans_mm);
+        a.add_m.push_back(r.add_mm / 1000.0);
+        a.adds_m.push_back(r.adds_mm / 1000.0);
+        a.correct += geom::correct_at(m->second.symmetric ? r.adds_mm : r.add_mm, d);
+        a.found++;
+        a.rot += r.rot_deg;
+        a.trans += r.trans_mm;
+    }
+    EvalReport rep;
+    rep.instances = int(results.size());
     Acc all;
     for (auto& [id, a] : acc) {
         ObjectScores s;
         s.obj_id = id;
-        s.name = ds.model(id).name;
-        s.symmetric = ds.model(id).info.symmetric;
+        s.name = meta.at(id).name;
+        s.symmetric = meta.at(id).symmetric;
         s.count = a.count;
         s.misses = a.misses;
         s.acc_add_s_10 = a.count ? 100.0 * a.correct / a.count : 0;
@@ -198,7 +234,7 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
         s.acc_addsym_10 = a.count ? 100.0 * a.correct_sym / a.count : 0;
         s.rot_err_sym_deg_median = median(a.rot_sym);
         s.median_trans_err_mm = median(a.trans_all);
-        s.num_symmetries = int(std::max<size_t>(1, model_geom[id].syms.size()));
+        s.num_symmetries = meta.at(id).num_symmetries;
         rep.objects.push_back(s);
         all.adds_m.insert(all.adds_m.end(), a.adds_m.begin(), a.adds_m.end());
         all.add_m.insert(all.add_m.end(), a.add_m.begin(), a.add_m.end());
@@ -220,11 +256,6 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
     }
     avg.mean_rot_err_deg = all.found ? all.rot / all.found : 0;
     avg.mean_trans_err_mm = all.found ? all.trans / all.found : 0;
-    if (rep.instances) {
-        rep.ms_crop = t_crop / rep.instances; rep.ms_seg = t_seg / rep.instances;
-        rep.ms_t = t_t / rep.instances; rep.ms_rot = t_rot / rep.instances;
-    }
-    net.train(was_training);
     return rep;
 }
 

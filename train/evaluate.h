@@ -51,6 +51,30 @@ struct EvalReport {
     int instances = 0;
 };
 
+/// One evaluated instance: its errors (mm, degrees) or a miss (no pose).
+struct InstanceResult {
+    int obj_id = 0;
+    bool found = false;       ///< false: no pose (counts as wrong, distance inf in the AUCs)
+    double add_mm = 0, adds_mm = 0, addsym_mm = 0;  ///< ADD, ADD-S, ADD modulo symmetries
+    double rot_deg = 0, rot_sym_deg = 0, trans_mm = 0;
+};
+
+/// What aggregation needs to know of an object.
+struct ObjectMeta {
+    std::string name;
+    double diameter = 0;      ///< mm; accuracies use 10% of it
+    bool symmetric = false;   ///< the dataset's ADD-S list (acc_add_s_10)
+    int num_symmetries = 1;
+};
+
+/// The report of per-instance results: per object (sorted by id) accuracies at 10% of the
+/// diameter, AUCs, mean / median errors over found poses (misses count as 180 degrees in the
+/// symmetric rotation median); the average row is the mean over objects of the accuracies, AUCs
+/// and medians and the mean over found instances of the mean errors. Throws g2l::Error for an
+/// object without meta or with a diameter <= 0.
+EvalReport aggregate(const std::vector<InstanceResult>& results,
+                     const std::map<int, ObjectMeta>& meta);
+
 /// class_of maps obj_id -> class index of the network (objects not in it are skipped);
 /// keypoints[class index] are the model keypoints the network was trained with.
 EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,

@@ -313,7 +313,7 @@ TEST_CASE("G2LNet: a tiny network overfits one batch with Adam", "[models][train
         adam.step();
     }
     INFO("loss " << first << " -> " << last);
-    CHECK(last < 0.5 * first);
+    CHECK(last < 0.45 * first);  // measured (2026-12-01): 7.79 -> 2.64 (x0.34)
 }
 
 TEST_CASE("G2LNet: wrong input shapes and configs throw naming the value", "[models][errors]") {

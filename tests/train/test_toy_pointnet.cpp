@@ -11,7 +11,7 @@ TEST_CASE("toy PointNet: the engine learns spheres vs boxes vs cylinders (> 95% 
     const train::ToyResult r = train::train_toy_pointnet(cfg);
     INFO("first loss " << r.first_loss << " final loss " << r.final_loss << " accuracy "
                        << r.test_accuracy << " in " << r.seconds << " s");
-    REQUIRE(r.final_loss < 0.5 * r.first_loss);
+    REQUIRE(r.final_loss < 0.05 * r.first_loss);  // measured (2026-12-01): 0.82 -> 0.0067
     REQUIRE(r.test_accuracy > 0.95);
 }
 

@@ -71,8 +71,9 @@ TEST_CASE("g2l_train: a short run on synthetic renders lowers the losses", "[tra
                 << mean(acc, 32, 40));
     // In 40 steps of a width-0.125 net the segmentation and the keypoint vectors (block A)
     // learn visibly; keypoint / translation regression in mm needs far longer runs.
-    REQUIRE(mean(seg, 32, 40) < 0.8 * mean(seg, 0, 8));
-    REQUIRE(mean(vec, 32, 40) < mean(vec, 0, 8));
+    // Measured (2026-12-01): seg 0.51 -> 0.32 (x0.63), vec 0.49 -> 0.38 (x0.78).
+    REQUIRE(mean(seg, 32, 40) < 0.72 * mean(seg, 0, 8));
+    REQUIRE(mean(vec, 32, 40) < 0.9 * mean(vec, 0, 8));
     REQUIRE(mean(acc, 32, 40) > mean(acc, 0, 8) + 0.05);
     for (double l : loss) REQUIRE(std::isfinite(l));
     for (const char* f : {"config.json", "steps.jsonl", "epochs.jsonl", "last.g2l"})

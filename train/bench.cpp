@@ -8,6 +8,7 @@
 #include "core/rng.h"
 #include "kernels/gemm.h"
 #include "nn/models/g2l_net.h"
+#include "nn/ops/concat_conv.h"
 #include "nn/ops/linear.h"
 #include "nn/optim.h"
 #include "train/pipeline.h"
@@ -58,6 +59,33 @@ void bench_shared_mlp(std::vector<BenchFigure>& out, const std::string& key, int
     out.push_back({key + "_fwdbwd_ms", tfb * 1e3, "ms", "conv1x1 forward + backward " + shape});
 }
 
+// A head's first layer as the network runs it: concat_conv1x1 over per-point features
+// [B, Cp, N] and global ones [B, Cg] (the global part once per cloud, never tiled).
+void bench_concat_conv(std::vector<BenchFigure>& out, const std::string& key, int64_t B,
+                       int64_t Cp, int64_t Cg, int64_t N, int64_t Cout, int reps) {
+    Rng rng(3);
+    Tensor x = Tensor::randn({B, Cp, N}, rng), g = Tensor::randn({B, Cg}, rng);
+    Tensor w = Tensor::randn({Cout, Cp + Cg}, rng), b = Tensor::randn({Cout}, rng);
+    const double flops = 2.0 * double(B) * double(Cout) * (double(Cp) * N + double(Cg));
+    const std::string shape = "[" + std::to_string(B) + ", " + std::to_string(Cp) + ", " +
+                              std::to_string(N) + "] + global [" + std::to_string(B) + ", " +
+                              std::to_string(Cg) + "] -> " + std::to_string(Cout);
+    const double tf = median_seconds([&] {
+        autograd::NoGradGuard ng;
+        nn::concat_conv1x1({x}, {g}, w, b);
+    }, reps);
+    for (Tensor* t : {&x, &g, &w, &b}) t->set_requires_grad();
+    Tensor dy = Tensor::randn({B, Cout, N}, rng);
+    const double tfb = median_seconds([&] {
+        for (Tensor* t : {&x, &g, &w, &b}) t->zero_grad();
+        nn::concat_conv1x1({x}, {g}, w, b).backward(dy);
+    }, reps);
+    out.push_back({key + "_fwd_ms", tf * 1e3, "ms", "concat_conv1x1 forward " + shape});
+    out.push_back({key + "_fwdbwd_ms", tfb * 1e3, "ms", "concat_conv1x1 forward + backward " + shape});
+    out.push_back({key + "_fwd_gflops", flops / tf / 1e9, "GFLOP/s",
+                   "concat_conv1x1 forward " + shape + " (executed FLOPs)"});
+}
+
 }  // namespace
 
 std::vector<BenchFigure> bench_engine(int reps, bool quick) {
@@ -79,9 +107,11 @@ std::vector<BenchFigure> bench_engine(int reps, bool quick) {
     if (!quick) {
         // The other large layers of one training batch (B = 8; 1500 points in the seg net,
         // 1000 after segmentation), spec §4.2-§4.6.
-        bench_shared_mlp(out, "seg_head1_b8", 8, 2256, 1500, 512, std::max(1, reps / 2));
+        // Head first layers run concat_conv1x1: per-point x1, x2, pf (64 + 128 + 1024) and the
+        // global g + one-hot (1024 + 16) computed once per cloud.
+        bench_concat_conv(out, "seg_head1_b8", 8, 1216, 1040, 1500, 512, std::max(1, reps / 2));
         bench_shared_mlp(out, "backbone_conv5_b8", 8, 128, 1500, 1024, std::max(1, reps / 2));
-        bench_shared_mlp(out, "rre_conv1_b8", 8, 2256, 1000, 256, std::max(1, reps / 2));
+        bench_concat_conv(out, "rre_conv1_b8", 8, 1216, 1040, 1000, 256, std::max(1, reps / 2));
     }
     return out;
 }

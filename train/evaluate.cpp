@@ -27,9 +27,43 @@ bool visible_enough(const data::Instance& inst, double min_visib) {
     return inst.visib_fract < 0 || inst.visib_fract >= min_visib;
 }
 
-// The sphere centre from a GT box: the paper lifts the detector's probability peak with depth;
-// with GT boxes we take the visible-mask pixel nearest to the mask centroid that has depth
-// (or, without a mask, the valid pixel nearest to the box centre) and back-project it.
+// The sphere centre from a 2D box and the depth alone, as a detector would give it: in the
+// central third of the box (the whole box if that has no depth), the valid pixel whose depth is
+// nearest the median depth there (ties: nearest the box centre), back-projected. No GT mask.
+bool box_centre(const data::Frame& f, const std::vector<float>& depth, int w,
+                const geom::Box2i& box, Eigen::Vector3d* centre) {
+    for (int pass = 0; pass < 2; ++pass) {
+        const int x0 = pass ? box.x : box.x + box.w / 3, y0 = pass ? box.y : box.y + box.h / 3;
+        const int x1 = pass ? box.x + box.w : box.x + box.w - box.w / 3;
+        const int y1 = pass ? box.y + box.h : box.y + box.h - box.h / 3;
+        std::vector<float> zs;
+        for (int v = y0; v < y1; ++v)
+            for (int u = x0; u < x1; ++u) {
+                const float z = depth[size_t(v) * w + u];
+                if (z > 0 && std::isfinite(z)) zs.push_back(z);
+            }
+        if (zs.empty()) continue;
+        std::nth_element(zs.begin(), zs.begin() + long(zs.size() / 2), zs.end());
+        const float zm = zs[zs.size() / 2];
+        const double cu = box.x + box.w / 2.0, cv = box.y + box.h / 2.0;
+        double best_dz = 1e30, best_d2 = 1e30;
+        int bu = -1, bv = -1;
+        for (int v = y0; v < y1; ++v)
+            for (int u = x0; u < x1; ++u) {
+                const float z = depth[size_t(v) * w + u];
+                if (!(z > 0) || !std::isfinite(z)) continue;
+                const double dz = std::fabs(z - zm), d2 = (u - cu) * (u - cu) + (v - cv) * (v - cv);
+                if (dz < best_dz || (dz == best_dz && d2 < best_d2)) best_dz = dz, best_d2 = d2, bu = u, bv = v;
+            }
+        const double z = depth[size_t(bv) * w + bu];
+        *centre = {(bu - f.K.cx) * z / f.K.fx, (bv - f.K.cy) * z / f.K.fy, z};
+        return true;
+    }
+    return false;
+}
+
+// The sphere centre with the GT visible mask (the earlier protocol, kept for comparison): the
+// mask pixel nearest to the mask centroid that has depth, back-projected.
 bool sphere_centre(const data::Dataset& ds, const data::Frame& f, const data::Instance& inst,
                    const std::vector<float>& depth, int w, int h, const geom::Box2i& box,
                    Eigen::Vector3d* centre) {
@@ -142,7 +176,8 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
                 Eigen::Vector3d c;
                 if (opt.crop == "frustum") {
                     crop = pts;
-                } else if (sphere_centre(ds, f, inst, depth, w, h, box, &c)) {
+                } else if (opt.centre_from_mask ? sphere_centre(ds, f, inst, depth, w, h, box, &c)
+                                                : box_centre(f, depth, w, box, &c)) {
                     const double r = opt.radius_scale * om.info.diameter;
                     const std::vector<int> keep = opt.crop == "sphere" ? geom::crop_sphere(pts, c, r)
                                                                      : geom::crop_slab(pts, c.z(), r);

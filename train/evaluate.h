@@ -19,6 +19,9 @@ struct EvalOptions {
     int64_t max_instances = 0;       ///< 0 = all
     int max_object_points = 2000;    ///< object points fed to the T / rotation nets
     int crop_points = 0;             ///< seg-net input points (training's sampling.points; 0 = all)
+    /// Sphere centre: false (default) = from the box and the depth only, as a detector gives
+    /// it; true = the GT visible mask's centre (the earlier protocol, for comparison).
+    bool centre_from_mask = false;
     int max_model_points = 2000;     ///< model vertices used by ADD / ADD-S (stride subsample)
 };
 

@@ -43,6 +43,10 @@ int main(int argc, char** argv) {
                    "object points fed to the T-net and rotation blocks (default: the checkpoint's "
                    "sampling.seg_points)")
         ->check(g2l::cli::at_least(1));
+    bool centre_from_mask = false;
+    app.add_flag("--centre-from-mask", centre_from_mask,
+                 "take the sphere centre from the GT visible mask (the earlier protocol; default: "
+                 "from the box and the depth only, as a detector would give it)");
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_eval"); rc >= 0) return rc;
@@ -100,6 +104,7 @@ int main(int argc, char** argv) {
             eo.max_object_points = object_points > 0 ? object_points : m.seg_points;
             eo.max_instances = max_instances;
             eo.min_visib_fract = set_min_visib[i];
+            eo.centre_from_mask = centre_from_mask;
             if (eo.min_visib_fract > 0) {
                 bool annotated = false;
                 for (const auto& f : sets_to_eval[i].second.frames())

@@ -8,6 +8,15 @@
 
 namespace g2l {
 
+/// A seed derived from two values (splitmix64 finaliser of a * phi + b): independent streams per
+/// (run seed, epoch, item, ...) without correlations between neighbouring values.
+inline uint64_t mix_seed(uint64_t a, uint64_t b) {
+    uint64_t z = a * 0x9E3779B97F4A7C15ull + b + 0x632BE59BD9B4E019ull;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
 class Rng {
 public:
     explicit Rng(uint64_t seed = 0x9E3779B97F4A7C15ull) { reseed(seed); }

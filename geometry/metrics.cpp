@@ -108,4 +108,11 @@ double vocap_auc(std::vector<double> distances_m, double max_threshold_m) {
     return ap / max_threshold_m * 100.0;
 }
 
+double median(std::vector<double> v) {
+    if (v.empty()) return 0;
+    std::sort(v.begin(), v.end());
+    const size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
 }  // namespace g2l::geom

@@ -13,6 +13,9 @@ namespace g2l::geom {
 /// Throws g2l::Error if N == 0 or a pose or point is not finite.
 double add(const Pose& est, const Pose& gt, const Points& model_pts);
 
+/// Median of the values (the mean of the two middle ones for an even count); 0 when empty.
+double median(std::vector<double> v);
+
 /// ADD-S (BOP `adi`): a KD-tree is built on the ESTIMATED-posed points; for every GT-posed point
 /// its nearest-neighbour distance is taken; returns the mean. Throws like add().
 double adds(const Pose& est, const Pose& gt, const Points& model_pts);

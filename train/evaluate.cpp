@@ -109,12 +109,6 @@ struct Acc {
     std::vector<double> rot_sym, trans_all;
 };
 
-double median(std::vector<double> v) {
-    if (v.empty()) return 0;
-    std::sort(v.begin(), v.end());
-    const size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 // Model points and geometric symmetries of one object (computed once per evaluation).
 struct ObjGeom {
@@ -267,8 +261,8 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
         s.mean_trans_err_mm = a.found ? a.trans / a.found : 0;
         s.acc_adds_all_10 = a.count ? 100.0 * a.correct_adds / a.count : 0;
         s.acc_addsym_10 = a.count ? 100.0 * a.correct_sym / a.count : 0;
-        s.rot_err_sym_deg_median = median(a.rot_sym);
-        s.median_trans_err_mm = median(a.trans_all);
+        s.rot_err_sym_deg_median = geom::median(a.rot_sym);
+        s.median_trans_err_mm = geom::median(a.trans_all);
         s.num_symmetries = meta.at(id).num_symmetries;
         rep.objects.push_back(s);
         all.adds_m.insert(all.adds_m.end(), a.adds_m.begin(), a.adds_m.end());

@@ -17,12 +17,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-uint64_t mix(uint64_t a, uint64_t b) {
-    uint64_t z = a * 0x9E3779B97F4A7C15ull + b + 0x632BE59BD9B4E019ull;
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
+uint64_t mix(uint64_t a, uint64_t b) { return mix_seed(a, b); }
 
 // Rotation input of a batch: M ground-truth object points per sample (random picks with
 // replacement when `rng`, else a deterministic stride), centred on t + noise.
@@ -64,12 +59,6 @@ RotInput make_input(const std::vector<PoseSample>& s, int M, int num_classes, do
     return in;
 }
 
-double median(std::vector<double> v) {
-    if (v.empty()) return 0;
-    std::sort(v.begin(), v.end());
-    const size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 }  // namespace
 
@@ -222,7 +211,7 @@ std::vector<RotStudyPoint> rot_study(const RotStudyConfig& cfg, int num_classes,
         }
         pt.val_kp_err_mm = kp_err / double(val.size());
         pt.val_kp_err_frac = kp_frac / double(val.size());
-        pt.val_rot_err_deg_median = median(rot_err);
+        pt.val_rot_err_deg_median = geom::median(rot_err);
         double sum = 0;
         int under = 0;
         for (double e : rot_err) sum += e, under += e < 10;

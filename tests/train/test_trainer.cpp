@@ -49,6 +49,19 @@ std::vector<double> logged(const std::string& run_dir, const char* key) {
     return v;
 }
 
+// Every tensor of the two checkpoints is bitwise the same.
+void require_same_checkpoint(const std::string& pa, const std::string& pb) {
+    const Checkpoint ka = load_checkpoint(pa), kb = load_checkpoint(pb);
+    REQUIRE(ka.tensors.size() == kb.tensors.size());
+    for (const auto& [name, t] : ka.tensors) {
+        INFO(name);
+        REQUIRE(kb.tensors.count(name));
+        const Tensor& u = kb.tensors.at(name);
+        REQUIRE(u.shape() == t.shape());
+        REQUIRE(std::memcmp(u.data(), t.data(), t.nbytes()) == 0);
+    }
+}
+
 }  // namespace
 
 TEST_CASE("g2l_train: a short run on synthetic renders lowers the losses", "[train][trainer]") {
@@ -97,15 +110,7 @@ TEST_CASE("g2l_train: stopping and resuming equals an uninterrupted run, bitwise
     opt.max_steps = 0;
     const auto sb = train::run_training(cb, opt);
     REQUIRE(sb.steps == 8);
-    const Checkpoint ka = load_checkpoint(a + "/last.g2l"), kb = load_checkpoint(b + "/last.g2l");
-    REQUIRE(ka.tensors.size() == kb.tensors.size());
-    for (const auto& [name, t] : ka.tensors) {
-        INFO(name);
-        REQUIRE(kb.tensors.count(name));
-        const Tensor& u = kb.tensors.at(name);
-        REQUIRE(u.shape() == t.shape());
-        REQUIRE(std::memcmp(u.data(), t.data(), t.nbytes()) == 0);
-    }
+    require_same_checkpoint(a + "/last.g2l", b + "/last.g2l");
     REQUIRE(logged(a, "loss") == logged(b, "loss"));
 }
 
@@ -120,13 +125,7 @@ TEST_CASE("g2l_train: making the next batch on a second thread changes nothing, 
     cb.train.prefetch = false;
     REQUIRE(train::run_training(ca, opt).steps == 8);
     REQUIRE(train::run_training(cb, opt).steps == 8);
-    const Checkpoint ka = load_checkpoint(a + "/last.g2l"), kb = load_checkpoint(b + "/last.g2l");
-    REQUIRE(ka.tensors.size() == kb.tensors.size());
-    for (const auto& [name, t] : ka.tensors) {
-        INFO(name);
-        const Tensor& u = kb.tensors.at(name);
-        REQUIRE(std::memcmp(u.data(), t.data(), t.nbytes()) == 0);
-    }
+    require_same_checkpoint(a + "/last.g2l", b + "/last.g2l");
     REQUIRE(logged(a, "loss") == logged(b, "loss"));
     REQUIRE(logged(a, "loss").size() == 8);
 }
@@ -145,13 +144,7 @@ TEST_CASE("g2l_train: 1 and 2 threads give bitwise identical checkpoints", "[tra
     cb.threads = 2;
     REQUIRE(train::run_training(ca, opt).steps == 4);
     REQUIRE(train::run_training(cb, opt).steps == 4);
-    const Checkpoint ka = load_checkpoint(a + "/last.g2l"), kb = load_checkpoint(b + "/last.g2l");
-    REQUIRE(ka.tensors.size() == kb.tensors.size());
-    for (const auto& [name, t] : ka.tensors) {
-        INFO(name);
-        const Tensor& u = kb.tensors.at(name);
-        REQUIRE(std::memcmp(u.data(), t.data(), t.nbytes()) == 0);
-    }
+    require_same_checkpoint(a + "/last.g2l", b + "/last.g2l");
     REQUIRE(logged(a, "loss") == logged(b, "loss"));
 #endif
 }

@@ -56,6 +56,13 @@ case "$cmd" in
         "./$BUILD_DIR/train/g2l_train" --config configs/demo_cpu.json --set "run_dir=$run_dir" "$@"
         "./$BUILD_DIR/train/g2l_eval" --checkpoint "$run_dir/last.g2l" --config configs/demo_cpu.json \
             --json "$run_dir/eval.json"
+        # The shipped model (21 YCB-Video objects, trained on renders only: docs/results.md) on
+        # the same real frames.
+        if [ -f models/ycbv_sim2real.g2l ]; then
+            echo "== the shipped model models/ycbv_sim2real.g2l on the real fixture frames"
+            "./$BUILD_DIR/train/g2l_eval" --checkpoint models/ycbv_sim2real.g2l \
+                --root tests/data/ycbv_mini --split train_real --json "$run_dir/eval_shipped.json"
+        fi
         echo "g2l.sh demo: run directory $run_dir (config, logs, checkpoints, eval.json)"
         ;;
     toy)

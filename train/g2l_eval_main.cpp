@@ -76,8 +76,19 @@ int main(int argc, char** argv) {
         std::vector<int> ids;
         for (const auto& p : m.class_of) ids.push_back(p.first);
         if (!root.empty()) {
+            // The checkpoint's objects that the dataset has models of (a model for 21 objects
+            // evaluates on a dataset that ships 2 of them).
+            const g2l::data::Dataset all = g2l::data::open_bop_models(root, {});
+            std::vector<int> present;
+            for (int id : ids)
+                if (all.models().count(id)) present.push_back(id);
+            if (present.empty()) {
+                std::fprintf(stderr, "g2l_eval: none of the checkpoint's %zu objects has a model in "
+                                     "%s/models\n", ids.size(), root.c_str());
+                return g2l::cli::kRunError;
+            }
             g2l::data::BopOptions o;
-            o.obj_ids = ids;
+            o.obj_ids = present;
             sets_to_eval.emplace_back(root + "/" + split, g2l::data::open_bop(root, split, o));
             set_min_visib.push_back(min_visib);
         } else {

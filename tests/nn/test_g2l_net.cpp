@@ -353,9 +353,11 @@ TEST_CASE("G2LNet: wrong input shapes and configs throw naming the value", "[mod
     REQUIRE_THROWS_WITH(nn::G2LNet(bad), Catch::Contains("num_classes"));
 }
 
-// Timing of one training batch at width 1 (B = 8, N = 1500 seg, M = 1000 rot): hidden, run
-// with `test_nn "[perf]"`.
-TEST_CASE("G2LNet: forward + backward time of one batch at width 1", "[.][perf][models]") {
+// Timing of one training batch at width 1 (B = 8, N = 1500 seg, M = 1000 rot): hidden and
+// [slow] (a sanitizer run with "~[slow]" would otherwise include it), run with
+// `test_nn "[perf]"`. It prints times and checks the backward pass only: speed targets live in
+// g2l_bench, never in timed unit tests.
+TEST_CASE("G2LNet: forward + backward time of one batch at width 1", "[.][perf][slow][models]") {
     nn::G2LNet net(nn::G2LConfig{});
     const Tensor oh = onehot_of({0, 1, 2, 3, 4, 5, 6, 7}, 16);
     const Tensor xs = points(8, 1500, 13), xr = points(8, 1000, 14), xt = points(8, 1000, 15);
@@ -379,10 +381,14 @@ TEST_CASE("G2LNet: forward + backward time of one batch at width 1", "[.][perf][
         std::cout << "seg fwd " << ms(t0, t1) << " ms, t+rot fwd " << ms(t1, t2)
                   << " ms, backward " << ms(t2, t3) << " ms, total " << ms(t0, t3) << " ms\n";
         best = std::min(best, ms(t0, t3));
+        if (rep == 0)
+            for (const auto& [name, p] : net.named_parameters()) {
+                INFO(name);
+                CHECK(p.grad().defined());
+            }
         net.zero_grad();
     }
     std::cout << "best forward + backward: " << best << " ms per batch of 8\n";
-    CHECK(best < 60000.0);
 }
 
 TEST_CASE("even_sample: a deterministic stride, or every point once plus spread repeats",

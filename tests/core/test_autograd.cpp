@@ -35,7 +35,7 @@ TEST_CASE("autograd: chain rule, accumulation over shared inputs, leaf gradient 
     REQUIRE_FALSE(x.grad().defined());
 }
 
-TEST_CASE("autograd: no-grad mode records nothing; graph is freed after backward",
+TEST_CASE("autograd: no-grad mode records nothing, graph is freed after backward",
           "[core][autograd]") {
     Tensor x = vec({1, 2});
     x.set_requires_grad();

@@ -45,7 +45,7 @@ std::string read_bytes(const fs::path& p) {
 
 }  // namespace
 
-TEST_CASE("scene ground truth is consistent with the masks; occluded objects lose pixels",
+TEST_CASE("scene ground truth is consistent with the masks, occluded objects lose pixels",
           "[data][scene]") {
     Models m;
     SceneConfig cfg = small_config();

@@ -47,7 +47,7 @@ TEST_CASE("max_pool2d: hand-made windows, padding never wins", "[nn][opsb]") {
     REQUIRE(dx == std::vector<float>{1, 2, 0, 0, 3, 4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0});
 }
 
-TEST_CASE("max_pool2d: ties go to the first element; overlapping windows accumulate",
+TEST_CASE("max_pool2d: ties go to the first element, overlapping windows accumulate",
           "[nn][opsb]") {
     const Tensor x = Tensor::full({1, 1, 3, 3}, 2.0);
     const auto dx = grad_of(

@@ -450,7 +450,7 @@ TEST_CASE("samples: bad config values and inputs throw naming the value", "[samp
                         Contains("frames must be > 0, got 0"));
 }
 
-TEST_CASE("synthetic noise-free samples: labels agree with the rendered instance mask; "
+TEST_CASE("synthetic noise-free samples: labels agree with the rendered instance mask, "
           "deterministic per index", "[samples]") {
     const data::BopDataset ds = open_mini();
     const SampleMaker maker(SampleConfig{}, models_of(ds), kClasses);

@@ -149,7 +149,7 @@ TEST_CASE("g2l_train: 1 and 2 threads give bitwise identical checkpoints", "[tra
 #endif
 }
 
-TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model; evaluation on real frames",
+TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real frames",
           "[train][eval]") {
     const std::string dir = testing::temp_dir("eval");
     const auto cfg = train::parse_config_text(tiny_config(dir, 1, 8), "e.json");

@@ -47,28 +47,9 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
 
     if (opt.rot_only) {
         // Rotation blocks alone on the ground-truth object points (resampled to M).
-        Tensor xr = Tensor::empty({B, 3, M});
-        std::vector<uint8_t> object(static_cast<size_t>(B * M), 1);
-        std::vector<Eigen::Vector3f> centres(static_cast<size_t>(B));
-        for (int64_t b = 0; b < B; ++b) {
-            const PoseSample& s = samples[size_t(b)];
-            std::vector<int32_t> idx;
-            for (int64_t n = 0; n < N; ++n)
-                if (s.labels[size_t(n)]) idx.push_back(int32_t(n));
-            G2L_CHECK(!idx.empty(), "g2l_step: sample ", b, " (object ", s.obj_id,
-                      ") has no object point");
-            Eigen::Vector3f c = s.t;
-            if (opt.centre_noise_mm > 0)
-                for (int a = 0; a < 3; ++a) c[a] += float(rng.normal() * opt.centre_noise_mm);
-            centres[size_t(b)] = c;
-            float* pr = xr.data<float>() + b * 3 * M;
-            for (int64_t m = 0; m < M; ++m) {
-                const size_t p = size_t(idx[rng.below(idx.size())]);
-                for (int a = 0; a < 3; ++a) pr[a * M + m] = s.points[p * 3 + size_t(a)] - c[a];
-            }
-        }
-        out.total = rotation_losses(net, samples, xr, object, centres, onehot, keypoints, w,
-                                    symmetric, opt, &out);
+        const RotationInput in = gt_rotation_input(samples, M, opt.centre_noise_mm, &rng);
+        out.total = rotation_losses(net, samples, in.x, in.object, in.centres, onehot, keypoints,
+                                    w, symmetric, opt, &out);
         return out;
     }
 
@@ -171,6 +152,34 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
     (void)K;
     out.total = total;
     return out;
+}
+
+RotationInput gt_rotation_input(const std::vector<PoseSample>& samples, int64_t M,
+                                double noise_mm, Rng* rng) {
+    const int64_t B = int64_t(samples.size());
+    RotationInput in;
+    in.x = Tensor::empty({B, 3, M});
+    in.object.assign(size_t(B * M), 1);
+    in.centres.resize(size_t(B));
+    for (int64_t b = 0; b < B; ++b) {
+        const PoseSample& s = samples[size_t(b)];
+        std::vector<int32_t> idx;
+        for (size_t n = 0; n < s.labels.size(); ++n)
+            if (s.labels[n]) idx.push_back(int32_t(n));
+        G2L_CHECK(!idx.empty(), "rotation input: sample ", b, " (object ", s.obj_id,
+                  ") has no object point");
+        Eigen::Vector3f c = s.t;
+        if (rng && noise_mm > 0)
+            for (int a = 0; a < 3; ++a) c[a] += float(rng->normal() * noise_mm);
+        in.centres[size_t(b)] = c;
+        float* pr = in.x.data<float>() + b * 3 * M;
+        for (int64_t m = 0; m < M; ++m) {
+            const size_t p = size_t(rng ? idx[rng->below(idx.size())]
+                                        : idx[size_t(m * int64_t(idx.size()) / M)]);
+            for (int a = 0; a < 3; ++a) pr[a * M + m] = s.points[p * 3 + size_t(a)] - c[a];
+        }
+    }
+    return in;
 }
 
 Tensor rotation_losses(nn::G2LNet& net, const std::vector<PoseSample>& samples, const Tensor& xr,

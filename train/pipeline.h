@@ -72,6 +72,18 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
                     const LossWeights& w, Rng& rng, const SymmetricKeypoints* symmetric = nullptr,
                     const StepOptions& opt = StepOptions());
 
+/// The rotation input made of the ground-truth object points of each sample: M of them, drawn
+/// with replacement from `rng`, or an even stride when `rng` is null (evaluation); centred on the
+/// GT translation plus N(0, noise_mm) per axis (noise only with `rng`). Every point is flagged
+/// object. Throws g2l::Error naming the sample that has no object point.
+struct RotationInput {
+    Tensor x;                              ///< [B, 3, M] points minus centres (mm)
+    std::vector<uint8_t> object;           ///< B * M ones
+    std::vector<Eigen::Vector3f> centres;  ///< per sample
+};
+RotationInput gt_rotation_input(const std::vector<PoseSample>& samples, int64_t M,
+                                double noise_mm, Rng* rng);
+
 /// The rotation blocks alone (A, B, C) on canonical points, as in g2l_step's part 4.
 /// xr: [B, 3, M] points minus `centres` (mm); object[b * M + m] != 0 for points of the object
 /// (the others get zero vector targets, as in the official code); centres[b]: the point the

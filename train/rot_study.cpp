@@ -19,46 +19,23 @@ using Clock = std::chrono::steady_clock;
 
 uint64_t mix(uint64_t a, uint64_t b) { return mix_seed(a, b); }
 
-// Rotation input of a batch: M ground-truth object points per sample (random picks with
-// replacement when `rng`, else a deterministic stride), centred on t + noise.
-struct RotInput {
-    Tensor x, onehot;
-    std::vector<uint8_t> object;
-    std::vector<Eigen::Vector3f> centres;
+// The rotation input of a batch (train::gt_rotation_input) and its one-hot classes.
+struct RotInput : RotationInput {
+    Tensor onehot;
 };
 
 RotInput make_input(const std::vector<PoseSample>& s, int M, int num_classes, double noise_mm,
                     Rng* rng) {
-    const int64_t B = int64_t(s.size());
     RotInput in;
-    in.x = Tensor::empty({B, 3, M});
-    in.onehot = Tensor::zeros({B, num_classes});
-    in.object.assign(size_t(B) * size_t(M), 1);
-    in.centres.resize(size_t(B));
-    for (int64_t b = 0; b < B; ++b) {
-        const PoseSample& p = s[size_t(b)];
-        G2L_CHECK(p.class_index >= 0 && p.class_index < num_classes, "rot_study: class index ",
-                  p.class_index, " outside [0, ", num_classes, ")");
-        in.onehot.data<float>()[b * num_classes + p.class_index] = 1.f;
-        std::vector<int32_t> obj;
-        for (size_t n = 0; n < p.labels.size(); ++n)
-            if (p.labels[n]) obj.push_back(int32_t(n));
-        G2L_CHECK(!obj.empty(), "rot_study: sample ", b, " (object ", p.obj_id,
-                  ") has no object point");
-        Eigen::Vector3f c = p.t;
-        if (rng && noise_mm > 0)
-            for (int a = 0; a < 3; ++a) c[a] += float(rng->normal() * noise_mm);
-        in.centres[size_t(b)] = c;
-        float* px = in.x.data<float>() + b * 3 * M;
-        for (int m = 0; m < M; ++m) {
-            const size_t q = size_t(rng ? obj[rng->below(obj.size())]
-                                        : obj[size_t(int64_t(m) * int64_t(obj.size()) / M)]);
-            for (int a = 0; a < 3; ++a) px[a * M + m] = p.points[q * 3 + size_t(a)] - c[a];
-        }
+    static_cast<RotationInput&>(in) = gt_rotation_input(s, M, noise_mm, rng);
+    in.onehot = Tensor::zeros({int64_t(s.size()), num_classes});
+    for (size_t b = 0; b < s.size(); ++b) {
+        G2L_CHECK(s[b].class_index >= 0 && s[b].class_index < num_classes,
+                  "rot_study: class index ", s[b].class_index, " outside [0, ", num_classes, ")");
+        in.onehot.data<float>()[b * size_t(num_classes) + size_t(s[b].class_index)] = 1.f;
     }
     return in;
 }
-
 
 }  // namespace
 

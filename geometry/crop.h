@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 #include "geometry/types.h"
@@ -32,5 +33,25 @@ struct AdaptiveSlabParams {
 std::vector<int> crop_slab_adaptive(const Points& pts, double centre_z, double diameter,
                                     const AdaptiveSlabParams& params = {},
                                     int* factor_used = nullptr);
+
+/// The one crop step of training samples and inference: indices (ascending) of the rows of
+/// `pts` kept by `crop` around `centre` — "sphere": |p - centre| < radius, "slab":
+/// |z - centre_z| < radius (the predicates of crop_sphere / crop_slab), "frustum": every row.
+/// Serial (several sample-making threads call it at once). Throws g2l::Error for another crop
+/// name, or (sphere/slab) a radius that is not finite and > 0 or a centre that is not finite.
+std::vector<int> crop_indices(const std::string& crop, const Points& pts,
+                              const Eigen::Vector3d& centre, double radius);
+
+/// `box` clipped to a width x height image (an empty box when nothing is left).
+Box2i clip_box(const Box2i& box, int width, int height);
+
+/// The sphere centre from a 2D box and the depth alone, as a detector gives it: in the central
+/// third of the box (the whole box when that third has no valid depth), the valid pixel whose
+/// depth is nearest the median depth there (ties: nearest the box centre), back-projected with
+/// K. Pixels with z <= 0 or a non-finite z are invalid. Returns false when the box (clipped to
+/// the image) is empty or has no valid depth. Throws g2l::Error for a null depth, a non-positive
+/// image size or intrinsics with a focal length that is not finite and > 0.
+bool box_centre(const float* depth_mm, int width, int height, const Intrinsics& K,
+                const Box2i& box, Eigen::Vector3d* centre);
 
 }  // namespace g2l::geom

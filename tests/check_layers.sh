@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Fails if a layer includes a layer above it (docs/architecture.md):
-#   core <- kernels <- nn <- {train, infer};  core <- geometry <- {nn, data}; data <- {train, infer}
-# and train/infer never include each other.
+#   core <- kernels <- nn <- {train, infer};  core <- geometry <- {nn, data}; data <- train;
+#   apps (command-line programs on the library) <- nothing; train/infer never include each other,
+#   and infer (the embeddable library) includes neither data nor train.
 set -u
 root=${1:-.}
 status=0
@@ -21,6 +22,8 @@ check nn data train infer
 check geometry kernels nn data train infer
 check data kernels nn train infer
 check train infer
-check infer train
+check infer train data apps
+check train apps
+check nn apps
 [ $status -eq 0 ] && echo "layers ok"
 exit $status

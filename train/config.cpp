@@ -294,6 +294,7 @@ void visit_config(IO& io, TrainConfig& c) {
         m.num("dropout", c.model.dropout);
         m.num("out_scale_mm", c.model.out_scale_mm);
         m.choice("rot_unit", c.model.rot_unit, kRotUnits);
+        m.boolean("class_heads", c.model.class_heads);
     });
     io.object("loss", [&](IO& l) {
         l.num("seg", c.loss.seg);

@@ -73,6 +73,7 @@ struct ModelConfig {
     double dropout = 0.2;            ///< dropout before the last layer of each head
     double out_scale_mm = 1.0;       ///< unit of the mm-valued outputs (nn::G2LConfig)
     std::string rot_unit = "kp_rms"; ///< rotation branch unit: "kp_rms" or "mm" (official)
+    bool class_heads = false;        ///< one output block per class in blocks A/B/C
 };
 
 /// Loss weights (spec §6: 10 L_seg + L_T/10 + 10 L_vec + L_kp/100 + L_res/100).

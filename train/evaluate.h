@@ -8,6 +8,8 @@
 #include <vector>
 
 #include "data/dataset.h"
+#include "data/detections.h"
+#include "geometry/types.h"
 #include "nn/models/g2l_net.h"
 
 namespace g2l::train {
@@ -23,6 +25,10 @@ struct EvalOptions {
     /// it; true = the GT visible mask's centre (the earlier protocol, for comparison).
     bool centre_from_mask = false;
     int max_model_points = 2000;     ///< model vertices used by ADD / ADD-S (stride subsample)
+    /// Boxes from a detector (BOP detection file; every entry needs scene_id and image_id)
+    /// instead of the GT boxes: each annotated instance takes the highest-scoring detection of
+    /// its object in its image; an instance without one is a miss. Null = GT boxes.
+    const std::vector<data::Detection>* detections = nullptr;
 };
 
 /// Per-object and overall figures. Misses (no pose) count as failures, with distance inf in
@@ -60,6 +66,16 @@ struct InstanceResult {
     bool found = false;       ///< false: no pose (counts as wrong, distance inf in the AUCs)
     double add_mm = 0, adds_mm = 0, addsym_mm = 0;  ///< ADD, ADD-S, ADD modulo symmetries
     double rot_deg = 0, rot_sym_deg = 0, trans_mm = 0;
+    // Where it came from and what was estimated (evaluate_gt_boxes fills these; aggregate
+    // does not read them).
+    std::string scene;             ///< BOP scene folder name ("000048")
+    int image_id = 0;
+    int inst_index = 0;            ///< index of the instance in the frame's scene_gt list
+    std::string status;            ///< "ok", "no detection", "no depth", "too few ... points"
+    double score = 1;              ///< box score (1 for GT boxes)
+    geom::Box2i box;               ///< the box used (clipped to the image)
+    geom::Pose est, gt;            ///< estimate (when found) and ground truth
+    double ms = 0;                 ///< crop + networks, this instance
 };
 
 /// What aggregation needs to know of an object.
@@ -84,6 +100,12 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
                              const std::map<int, int>& class_of,
                              const std::vector<std::vector<Eigen::Vector3f>>& keypoints,
                              const EvalOptions& opt);
+
+/// evaluate_gt_boxes with every per-instance result (in frame order) in *instances.
+EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
+                              const std::map<int, int>& class_of,
+                              const std::vector<std::vector<Eigen::Vector3f>>& keypoints,
+                              const EvalOptions& opt, std::vector<InstanceResult>* instances);
 
 /// The report as a Markdown table (one row per object + the average + timings).
 std::string report_markdown(const EvalReport& r);

@@ -3,13 +3,114 @@
 #include <CLI/CLI.hpp>
 
 #include "core/cli.h"
+#include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "data/bop.h"
+#include "data/detections.h"
+#include "data/draw.h"
+#include "geometry/metrics.h"
 #include "train/config.h"
 #include "train/evaluate.h"
 #include "train/model_io.h"
+
+namespace {
+
+using json = nlohmann::json;
+
+// --bop-csv, --instances and --vis for the instances of one evaluated set.
+void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::train::InstanceResult>& inst,
+                   std::ofstream* csv, std::ofstream* jsonl, const std::string& vis_dir,
+                   const std::string& set_name) {
+    // BOP: `time` is the wall time of the whole image, the same on all of its rows.
+    std::map<std::pair<std::string, int>, double> image_ms;
+    for (const auto& r : inst) image_ms[{r.scene, r.image_id}] += r.ms;
+    char buf[1024];
+    for (const auto& r : inst) {
+        if (csv && r.found) {
+            const auto& R = r.est.R;
+            const auto& t = r.est.t;
+            std::snprintf(buf, sizeof buf,
+                          "%d,%d,%d,%.6f,%.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g,%.6f %.6f %.6f,%.6f\n",
+                          std::atoi(r.scene.c_str()), r.image_id, r.obj_id, r.score, R(0, 0), R(0, 1),
+                          R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2), t[0], t[1],
+                          t[2], image_ms[{r.scene, r.image_id}] / 1000.0);
+            *csv << buf;
+        }
+        if (jsonl) {
+            auto pose_json = [](const g2l::geom::Pose& p) {
+                json R = json::array();
+                for (int a = 0; a < 3; ++a)
+                    for (int b = 0; b < 3; ++b) R.push_back(p.R(a, b));
+                return json{{"R", R}, {"t", {p.t[0], p.t[1], p.t[2]}}};
+            };
+            json j = {{"set", set_name}, {"scene", r.scene}, {"image_id", r.image_id},
+                      {"inst", r.inst_index}, {"obj_id", r.obj_id}, {"status", r.status},
+                      {"found", r.found}, {"score", r.score},
+                      {"box", {r.box.x, r.box.y, r.box.w, r.box.h}}, {"gt", pose_json(r.gt)},
+                      {"ms", r.ms}};
+            if (r.found) {
+                j["est"] = pose_json(r.est);
+                j["add_mm"] = r.add_mm;
+                j["adds_mm"] = r.adds_mm;
+                j["addsym_mm"] = r.addsym_mm;
+                j["rot_err_deg"] = r.rot_deg;
+                j["rot_err_sym_deg"] = r.rot_sym_deg;
+                j["trans_err_mm"] = r.trans_mm;
+            }
+            *jsonl << j.dump() << "\n";
+        }
+    }
+    if (vis_dir.empty()) return;
+    namespace fs = std::filesystem;
+    // One image per frame: ground truth green, estimate blue (the paper's Fig. 7).
+    std::map<std::pair<std::string, int>, std::vector<const g2l::train::InstanceResult*>> by_frame;
+    for (const auto& r : inst) by_frame[{r.scene, r.image_id}].push_back(&r);
+    for (const auto& f : ds.frames()) {
+        const auto it = by_frame.find({f.scene, f.image_id});
+        if (it == by_frame.end()) continue;
+        g2l::data::Image im;
+        if (!f.rgb_path.empty()) {
+            im = ds.load_rgb(f);
+        } else {
+            int w = 0, h = 0;
+            im = g2l::data::depth_to_rgb(ds.load_depth_mm(f, &w, &h), w, h);
+        }
+        for (const auto* r : it->second) {
+            const g2l::geom::ModelInfo& mi = ds.model(r->obj_id).info;
+            const Eigen::Vector3d lo = mi.min, hi = mi.min + mi.size;
+            g2l::data::draw_box3d(&im, lo, hi, r->gt, f.K, {40, 220, 40});
+            if (r->found) g2l::data::draw_box3d(&im, lo, hi, r->est, f.K, {40, 90, 255});
+        }
+        g2l::data::save_png((fs::path(vis_dir) / (f.scene + "_" + std::to_string(f.image_id) + ".png")).string(), im);
+    }
+    // Accuracy against the threshold (fraction of the diameter, 0-20%) per object: ADD-S (red),
+    // ADD modulo the geometric symmetries (blue), ADD (grey).
+    std::map<int, std::vector<const g2l::train::InstanceResult*>> by_obj;
+    for (const auto& r : inst) by_obj[r.obj_id].push_back(&r);
+    for (const auto& [id, rs] : by_obj) {
+        const double d = ds.model(id).info.diameter;
+        std::vector<std::vector<std::pair<double, double>>> curves(3);
+        for (int k = 0; k <= 40; ++k) {
+            const double frac = 0.2 * k / 40.0;
+            double n[3] = {0, 0, 0};
+            for (const auto* r : rs) {
+                if (!r->found) continue;
+                n[0] += r->adds_mm < frac * d;
+                n[1] += r->addsym_mm < frac * d;
+                n[2] += r->add_mm < frac * d;
+            }
+            for (int c = 0; c < 3; ++c) curves[size_t(c)].push_back({frac, 100.0 * n[c] / double(rs.size())});
+        }
+        g2l::data::save_png((fs::path(vis_dir) / ("accuracy_obj_" + std::to_string(id) + ".png")).string(),
+                            g2l::data::plot_curves(curves, {{{220, 40, 40}}, {{40, 90, 255}}, {{150, 150, 150}}}, 0.2));
+    }
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
     CLI::App app{"g2l_eval: evaluates a trained G2L-Net checkpoint with ground-truth 2D boxes "
@@ -26,8 +127,20 @@ int main(int argc, char** argv) {
     app.add_option("--set", sets, "config overrides (as g2l_train)");
     app.add_option("--root", root, "BOP dataset root (instead of --config)");
     app.add_option("--split", split, "BOP split with --root");
-    app.add_option("--boxes", boxes, "2D boxes: gt (ground truth; detector boxes come later)")
-        ->check(CLI::IsMember({"gt"}));
+    std::string detections_path, bop_csv, instances_path, vis_dir;
+    app.add_option("--boxes", boxes, "2D boxes: gt (ground truth) or file (a BOP detection file "
+                                     "given with --detections)")
+        ->check(CLI::IsMember({"gt", "file"}));
+    app.add_option("--detections", detections_path,
+                   "BOP detection file (JSON array of {scene_id, image_id, category_id, bbox, score, "
+                   "time}) for --boxes file");
+    app.add_option("--bop-csv", bop_csv, "write the estimates as a BOP Challenge results CSV "
+                                         "(scene_id,im_id,obj_id,score,R,t,time)");
+    app.add_option("--instances", instances_path, "write one JSON line per evaluated instance "
+                                                  "(ids, status, box, estimate, ground truth, errors)");
+    app.add_option("--vis", vis_dir, "write images with the projected 3D boxes (ground truth green, "
+                                      "estimate blue) and an accuracy-threshold curve per object "
+                                      "into this folder");
     app.add_option("--json", json_out, "also write the figures as JSON to this file");
     app.add_option("--max-instances", max_instances, "evaluate at most this many instances")
         ->check(g2l::cli::at_least(0));
@@ -50,6 +163,11 @@ int main(int argc, char** argv) {
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_eval"); rc >= 0) return rc;
+    if ((boxes == "file") != !detections_path.empty()) {
+        std::fprintf(stderr, "g2l_eval: --boxes file needs --detections FILE, and --detections "
+                             "needs --boxes file\n");
+        return g2l::cli::kUsageError;
+    }
     if (config.empty() == root.empty()) {
         std::fprintf(stderr, "g2l_eval: give exactly one of --config or --root (see g2l_eval --help)\n");
         return g2l::cli::kUsageError;
@@ -70,6 +188,25 @@ int main(int argc, char** argv) {
         }
     }
     try {
+        // Every input and output before the (long) evaluation.
+        std::vector<g2l::data::Detection> detections;
+        if (!detections_path.empty()) detections = g2l::data::load_bop_detections(detections_path);
+        std::ofstream csv_out, inst_out;
+        if (!bop_csv.empty()) {
+            csv_out.open(bop_csv);
+            G2L_CHECK(csv_out.good(), "--bop-csv '", bop_csv, "': cannot write the file");
+            csv_out << "scene_id,im_id,obj_id,score,R,t,time\n";
+        }
+        if (!instances_path.empty()) {
+            inst_out.open(instances_path);
+            G2L_CHECK(inst_out.good(), "--instances '", instances_path, "': cannot write the file");
+        }
+        if (!vis_dir.empty()) {
+            std::error_code ec;
+            std::filesystem::create_directories(vis_dir, ec);
+            G2L_CHECK(!ec && std::filesystem::is_directory(vis_dir), "--vis '", vis_dir,
+                      "': cannot create the folder: ", ec.message());
+        }
         g2l::train::LoadedModel m = g2l::train::load_model(checkpoint);
         std::vector<std::pair<std::string, g2l::data::BopDataset>> sets_to_eval;
         std::vector<double> set_min_visib;  // per set: --min-visib, else the source's
@@ -126,10 +263,17 @@ int main(int argc, char** argv) {
                                          "evaluated)\n", eo.min_visib_fract,
                                  sets_to_eval[i].first.c_str());
             }
-            const auto r = g2l::train::evaluate_gt_boxes(*m.net, sets_to_eval[i].second, m.class_of,
-                                                         m.keypoints, eo);
-            std::printf("## %s (GT boxes, %s crop)\n\n%s\n", sets_to_eval[i].first.c_str(),
+            if (boxes == "file") eo.detections = &detections;
+            std::vector<g2l::train::InstanceResult> inst;
+            const auto& ds = sets_to_eval[i].second;
+            const auto r = g2l::train::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo,
+                                                          &inst);
+            std::printf("## %s (%s boxes, %s crop)\n\n%s\n", sets_to_eval[i].first.c_str(),
+                        boxes == "gt" ? "GT" : ("detection file " + detections_path).c_str(),
                         m.crop.c_str(), g2l::train::report_markdown(r).c_str());
+            write_outputs(ds, inst, csv_out.is_open() ? &csv_out : nullptr,
+                          inst_out.is_open() ? &inst_out : nullptr, vis_dir,
+                          sets_to_eval[i].first);
             json_all += (i ? "," : "") + g2l::train::report_json(r);
         }
         json_all += "]";
@@ -137,6 +281,14 @@ int main(int argc, char** argv) {
             std::ofstream f(json_out);
             if (!f) throw std::runtime_error("cannot write '" + json_out + "'");
             f << json_all << "\n";
+        }
+        if (csv_out.is_open()) {
+            csv_out.close();
+            G2L_CHECK(csv_out.good(), "--bop-csv '", bop_csv, "': write error");
+        }
+        if (inst_out.is_open()) {
+            inst_out.close();
+            G2L_CHECK(inst_out.good(), "--instances '", instances_path, "': write error");
         }
         return 0;
     } catch (const std::exception& e) {

@@ -62,6 +62,7 @@ int main(int argc, char** argv) {
     app.add_option("--symmetric", c.symmetric, "min-over-symmetries targets (1/0)");
     app.add_option("--keypoints", keypoints_kind, "bbx8 | fps4 | fps8 | fps12");
     app.add_option("--seed", c.seed, "seed");
+    app.add_option("--class-heads", c.class_heads, "one output block per class in blocks A/B/C (1/0)");
     app.add_option("--zero-last", c.zero_last_layers, "zero-initialise the last layers of A/B/C (1/0)");
     app.add_option("--threads", threads, "CPU threads (0 = all)");
     app.add_option("--json", out_json, "write the curve as JSON here");

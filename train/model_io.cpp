@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/checkpoint.h"
+#include "geometry/model_info.h"
 
 namespace g2l::train {
 
@@ -22,40 +23,62 @@ nn::G2LConfig model_config(const TrainConfig& cfg, int num_keypoints) {
     mc.seed = cfg.seed;
     mc.out_scale_mm = cfg.model.out_scale_mm;
     mc.rot_unit = cfg.model.rot_unit;
+    mc.class_heads = cfg.model.class_heads;
     return mc;
 }
 
 namespace {
-
-json model_json(const nn::G2LConfig& c) {
-    return {{"num_classes", c.num_classes}, {"num_keypoints", c.num_keypoints}, {"evf", c.evf},
-            {"rre", c.rre}, {"width", c.width}, {"dropout", c.dropout}, {"seed", c.seed},
-            {"rre_dropout", c.rre_dropout}, {"out_scale_mm", c.out_scale_mm},
-            {"rot_unit", c.rot_unit}};
-}
-
-// The inverse of model_json. Keys added after the first checkpoints default to the behaviour
-// those files were trained with (out_scale_mm: 2026-11-23). Throws json::exception.
-nn::G2LConfig model_from_json(const json& mj) {
-    nn::G2LConfig c;
-    c.num_classes = mj.at("num_classes");
-    c.num_keypoints = mj.at("num_keypoints");
-    c.evf = mj.at("evf");
-    c.rre = mj.at("rre");
-    c.width = mj.at("width");
-    c.dropout = mj.at("dropout");
-    c.seed = mj.at("seed");
-    c.rre_dropout = mj.at("rre_dropout");
-    c.out_scale_mm = mj.value("out_scale_mm", 1.0);
-    c.rot_unit = mj.value("rot_unit", std::string("mm"));  // added 2026-12-01
-    return c;
-}
 
 const json& key(const json& j, const char* k, const std::string& path) {
     G2L_CHECK(j.is_object() && j.contains(k), "checkpoint '", path, "': metadata has no '", k,
               "' (not a g2l training checkpoint?)");
     return j.at(k);
 }
+
+json model_json(const nn::G2LConfig& c) { return nn::g2l_config_json(c); }
+
+json objects_json(const std::map<int, nn::ModelObjectInfo>& objects) {
+    json out = json::array();
+    for (const auto& [id, o] : objects)
+        out.push_back({{"obj_id", id}, {"diameter", o.diameter}, {"symmetric", o.symmetric}});
+    return out;
+}
+
+// The objects' diameters for a checkpoint written before they were stored: from the
+// models_info.json of the training config's data sources (synthetic models_root, BOP root).
+json objects_from_config(const json& meta, const std::string& path) {
+    std::map<int, nn::ModelObjectInfo> found;
+    std::vector<std::string> tried;
+    if (meta.contains("config") && meta.at("config").contains("data")) {
+        const json& d = meta.at("config").at("data");
+        for (const char* part : {"train", "val"}) {
+            if (!d.contains(part)) continue;
+            for (const auto& src : d.at(part)) {
+                std::string root = src.value("models_root", src.value("root", std::string()));
+                if (root.empty()) continue;
+                const std::string info = root + "/models/models_info.json";
+                tried.push_back(info);
+                if (!std::filesystem::exists(info)) continue;
+                for (const auto& [id, mi] : geom::load_models_info_json(info))
+                    if (!found.count(id)) found[id] = {mi.diameter, mi.symmetric};
+            }
+        }
+    }
+    json out = json::array();
+    for (const auto& p : key(meta, "classes", path)) {
+        const int id = p.at(0);
+        std::string where;
+        for (const auto& t : tried) where += (where.empty() ? "" : ", ") + t;
+        G2L_CHECK(found.count(id), "export of '", path, "': the checkpoint does not store the "
+                  "diameter of object ", id, " and no models_info.json of its config has it (tried: ",
+                  where.empty() ? std::string("none") : where, ")");
+        out.push_back({{"obj_id", id}, {"diameter", found[id].diameter},
+                       {"symmetric", found[id].symmetric}});
+    }
+    return out;
+}
+nn::G2LConfig model_from_json(const json& j) { return nn::g2l_config_from_json(j); }
+
 
 // The checkpoint's JSON metadata; throws g2l::Error naming the file when it is not JSON.
 json read_meta(const Checkpoint& ck, const std::string& path) {
@@ -72,7 +95,8 @@ json read_meta(const Checkpoint& ck, const std::string& path) {
 void save_training_checkpoint(const std::string& path, const nn::G2LNet& net,
                               const nn::Adam& adam, const TrainConfig& cfg,
                               const std::map<int, int>& class_of, const KeypointTable& keypoints,
-                              const ResumeState& st) {
+                              const ResumeState& st,
+                              const std::map<int, nn::ModelObjectInfo>& objects) {
     std::vector<std::pair<std::string, Tensor>> tensors;
     for (const auto& [name, t] : net.state_dict()) tensors.emplace_back("model." + name, t);
     for (auto& p : adam.state_tensors()) tensors.push_back(p);
@@ -88,6 +112,7 @@ void save_training_checkpoint(const std::string& path, const nn::G2LNet& net,
     }
     meta["classes"] = ids;
     meta["keypoints"] = kps;
+    if (!objects.empty()) meta["objects"] = objects_json(objects);
     meta["sampling"] = {{"crop", cfg.sampling.crop}, {"radius_scale", cfg.sampling.radius_scale},
                         {"points", cfg.sampling.points}, {"seg_points", cfg.sampling.seg_points}};
     meta["resume"] = {{"epoch", st.epoch}, {"pos", st.pos}, {"global_step", st.global_step},
@@ -139,50 +164,16 @@ ResumeState load_training_checkpoint(const std::string& path, nn::G2LNet& net, n
     return st;
 }
 
-LoadedModel load_model(const std::string& path) {
-    const Checkpoint ck = load_checkpoint(path);
-    const json meta = read_meta(ck, path);
-    const std::string format = meta.value("format", "");
-    G2L_CHECK(format == "g2l-train" || format == "g2l-model", "checkpoint '", path,
-              "' is not a g2l model checkpoint or export (format '", format, "')");
-    LoadedModel m;
-    try {
-        m.net = std::make_unique<nn::G2LNet>(model_from_json(key(meta, "model", path)));
-        for (const auto& p : key(meta, "classes", path)) m.class_of[p.at(0)] = p.at(1);
-        for (const auto& k : key(meta, "keypoints", path)) {
-            std::vector<Eigen::Vector3f> one;
-            for (const auto& p : k) one.emplace_back(p.at(0), p.at(1), p.at(2));
-            m.keypoints.push_back(one);
-        }
-        m.crop = key(meta, "sampling", path).at("crop");
-        m.radius_scale = meta.at("sampling").at("radius_scale");
-        // Added 2026-12-01; older files fed the whole crop (0 = no sampling).
-        m.points = meta.at("sampling").value("points", 0);
-        m.seg_points = meta.at("sampling").value("seg_points", 2000);
-        m.config_json = meta.contains("config") ? meta.at("config").dump(2) : "{}";
-    } catch (const json::exception& e) {
-        G2L_CHECK(false, "checkpoint '", path, "': malformed metadata: ", e.what());
-    }
-    std::map<std::string, Tensor> model;
-    for (const auto& [name, t] : ck.tensors)
-        if (name.rfind("model.", 0) == 0) model.emplace(name.substr(6), t);
-    try {
-        m.net->load_state_dict(model);
-    } catch (const Error& e) {
-        G2L_CHECK(false, "checkpoint '", path, "': ", e.what());
-    }
-    m.net->eval();
-    return m;
-}
-
 int64_t export_model(const std::string& checkpoint_path, const std::string& out_path) {
-    (void)load_model(checkpoint_path);  // everything an export needs is there and consistent
+    (void)nn::load_model(checkpoint_path);  // everything an export needs is there and consistent
     const Checkpoint ck = load_checkpoint(checkpoint_path);
     const json meta = read_meta(ck, checkpoint_path);
     json out;
     out["format"] = "g2l-model";
     for (const char* k : {"model", "classes", "keypoints", "sampling", "config"})
         if (meta.contains(k)) out[k] = meta.at(k);
+    out["objects"] = meta.contains("objects") ? meta.at("objects")
+                                              : objects_from_config(meta, checkpoint_path);
     if (meta.contains("resume")) {
         const json& r = meta.at("resume");
         out["trained"] = {{"epoch", r.value("epoch", 0)}, {"global_step", r.value("global_step", 0)},

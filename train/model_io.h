@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "nn/models/g2l_io.h"
 #include "nn/models/g2l_net.h"
 #include "nn/optim.h"
 #include "train/config.h"
@@ -34,29 +35,21 @@ nn::G2LConfig model_config(const TrainConfig& cfg, int num_keypoints);
 void save_training_checkpoint(const std::string& path, const nn::G2LNet& net,
                               const nn::Adam& adam, const TrainConfig& cfg,
                               const std::map<int, int>& class_of, const KeypointTable& keypoints,
-                              const ResumeState& state);
+                              const ResumeState& state,
+                              const std::map<int, nn::ModelObjectInfo>& objects = {});
 
 /// Restores model + optimizer from a checkpoint written by save_training_checkpoint and
 /// returns the resume state. Throws g2l::Error naming the file when it is not a training
 /// checkpoint or does not match the network (listing the mismatched tensors).
 ResumeState load_training_checkpoint(const std::string& path, nn::G2LNet& net, nn::Adam& adam);
 
-/// A trained model ready for inference, rebuilt from the checkpoint alone.
-struct LoadedModel {
-    std::unique_ptr<nn::G2LNet> net;
-    std::map<int, int> class_of;   ///< obj_id -> class index
-    KeypointTable keypoints;       ///< class index -> model keypoints (mm)
-    std::string crop = "sphere";   ///< crop the network was trained with
-    double radius_scale = 1.0;
-    int points = 0;                ///< seg-net input points per crop (0 = the whole crop)
-    int seg_points = 2000;         ///< object points fed to the T-net and the rotation blocks
-    std::string config_json;       ///< the training config (effective)
-};
-/// Accepts training checkpoints ("g2l-train") and inference exports ("g2l-model").
-LoadedModel load_model(const std::string& path);
+/// Model loading lives in nn/models/g2l_io.h (infer/ reads the same files).
+using nn::LoadedModel;
+using nn::load_model;
 
 /// Writes an inference export of a training checkpoint (atomically): the model's tensors,
-/// network hyper-parameters, object ids, keypoints, crop and point-sampling settings, the
+/// network hyper-parameters, object ids, keypoints, object diameters (stored in the checkpoint,
+/// or read from the models_info.json of its config's data sources for older checkpoints), crop and point-sampling settings, the
 /// training config and where it came from (epoch, step, seconds) — no optimizer state, so it is
 /// about a third of the checkpoint. Returns the number of bytes written. Throws g2l::Error naming
 /// the file for anything load_model would refuse.

@@ -63,6 +63,7 @@ std::vector<RotStudyPoint> rot_study(const RotStudyConfig& cfg, int num_classes,
     mc.seed = cfg.seed;
     mc.rot_unit = cfg.rot_unit;
     mc.out_scale_mm = cfg.out_scale_mm;
+    mc.class_heads = cfg.class_heads;
     nn::G2LNet net(mc);
     if (cfg.zero_last_layers)
         for (auto& [name, t] : net.named_parameters())

@@ -36,6 +36,7 @@ struct RotStudyConfig {
     /// Initialisation: false = PyTorch's default U(+-1/sqrt(fan_in)) everywhere; true = the
     /// last layers of blocks A, B (and C) start at zero (the prediction starts at "zero").
     bool zero_last_layers = false;
+    bool class_heads = false;  ///< nn::G2LConfig::class_heads
 };
 
 /// One point of a learning curve.

@@ -2,6 +2,8 @@
 // SampleMaker: (depth frame, GT instance) -> PoseSample. See sample.h and spec §6.
 #include "train/sample.h"
 
+#include "geometry/crop.h"
+
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -121,25 +123,6 @@ Eigen::Matrix3d random_rotation(double deg, Rng& rng) {
         .toRotationMatrix();
 }
 
-// Indices (ascending) of the rows of pts that the crop keeps: the predicates of geom::crop_sphere
-// and geom::crop_slab (strict <), evaluated serially here because those functions start an
-// OpenMP team above 20k points, which oversubscribes the cores when samples are made on several
-// loader threads (measured: 3-10x slower per sample on a busy 2-core machine).
-std::vector<int> crop_indices(const std::string& crop, const geom::Points& pts,
-                              const Eigen::Vector3d& centre, double radius) {
-    const int n = static_cast<int>(pts.rows());
-    std::vector<int> kept;
-    kept.reserve(static_cast<size_t>(n));
-    const double r2 = radius * radius;
-    for (int i = 0; i < n; ++i) {
-        const Eigen::Vector3d p = pts.row(i).cast<double>().transpose();
-        const bool keep = crop == "sphere" ? (p - centre).squaredNorm() < r2
-                          : crop == "slab" ? std::abs(p.z() - centre.z()) < radius
-                                           : true;  // frustum: the whole box
-        if (keep) kept.push_back(i);
-    }
-    return kept;
-}
 
 // Writes out->points = Rm (p - mean) + s (+ noise) for the rows idx of pts, and the GT pose,
 // mean, Rm and shift in that frame: R' = Rm R, t' = Rm (t - mean) + s, so p' = R' x + t' holds
@@ -272,7 +255,7 @@ bool SampleMaker::make(const DepthView& view, const data::Instance& inst, Rng& r
 
     // 3. Crop.
     std::vector<int> kept =
-        crop_indices(cfg_.crop, pts, centre, cfg_.radius_scale * obj.info.diameter);
+        geom::crop_indices(cfg_.crop, pts, centre, cfg_.radius_scale * obj.info.diameter);
     if (static_cast<int>(kept.size()) < cfg_.min_points) return false;
     const int n_kept = static_cast<int>(kept.size());
 

@@ -294,12 +294,18 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
     sum.run_dir = run_dir;
     const auto t_start = Clock::now();
     int64_t samples_done = 0;
+    std::map<int, nn::ModelObjectInfo> objects;  // stored so exports know each crop's radius
+    for (const auto& [id, cls] : rd.class_of) {
+        (void)cls;
+        const geom::ModelInfo& mi = rd.maker->info(id);
+        objects[id] = {mi.diameter, mi.symmetric};
+    }
     auto save = [&](const std::string& name) {
         const double now = std::chrono::duration<double>(Clock::now() - t_start).count();
         ResumeState st{epoch, pos, global_step, epoch_batches, epoch_loss, best_val,
                        seconds_before + now};
         save_training_checkpoint((fs::path(run_dir) / name).string(), net, adam, cfg, rd.class_of,
-                                 rd.keypoints, st);
+                                 rd.keypoints, st, objects);
     };
     bool stop = false;
     while (epoch < cfg.train.epochs && !stop) {

@@ -6,7 +6,9 @@
 
 #include "nn/ops/activation.h"
 #include "nn/ops/concat_conv.h"
+#include "nn/ops/elementwise.h"
 #include "nn/ops/pool_points.h"
+#include "nn/ops/reduce.h"
 #include "nn/ops/shape.h"
 #include "nn/ops/softmax.h"
 
@@ -32,6 +34,21 @@ std::vector<int64_t> official_head_columns(int64_t prefix, int64_t c1, int64_t c
     block(g_off, c5);
     block(pf_off + c5, num_classes);
     return cols;
+}
+
+Tensor select_class_block(const Tensor& x, const Tensor& onehot) {
+    G2L_CHECK(x.defined() && onehot.defined() && onehot.dim() == 2 && (x.dim() == 2 || x.dim() == 3) &&
+                  x.size(0) == onehot.size(0) && onehot.size(1) >= 1 &&
+                  x.size(1) % onehot.size(1) == 0,
+              "select_class_block: expected x [B, C*F] or [B, C*F, N] and onehot [B, C], got x ",
+              x.defined() ? x.desc() : std::string("undefined"), " and onehot ",
+              onehot.defined() ? onehot.desc() : std::string("undefined"));
+    const int64_t B = x.size(0), C = onehot.size(1), F = x.size(1) / C;
+    const int64_t N = x.dim() == 3 ? x.size(2) : 1;
+    if (C == 1) return x;
+    const Tensor blocks = x.reshape({B, C, F * N});
+    const Tensor picked = sum(mul(blocks, onehot.reshape({B, C, 1})), 1);  // [B, F*N]
+    return x.dim() == 3 ? picked.reshape({B, F, N}) : picked.reshape({B, F});
 }
 
 PointFeatures PointFeatures::detached() const {
@@ -163,29 +180,35 @@ Tensor TNet::forward(const Tensor& x, const Tensor& onehot) {
 // ---- EvfNet ----
 
 EvfNet::EvfNet(double width, int64_t num_classes, int64_t num_keypoints, double dropout, Rng& rng,
-               uint64_t seed)
-    : num_classes_(num_classes), num_keypoints_(num_keypoints) {
+               uint64_t seed, bool class_heads)
+    : num_classes_(num_classes), num_keypoints_(num_keypoints), class_heads_(class_heads) {
     backbone_ = register_module("backbone", std::make_shared<PointBackbone>(width, rng));
     const int64_t cp = backbone_->c1 + backbone_->c2 + backbone_->c5;
     head_ = register_module("head", std::make_shared<ConcatMlp>(cp, backbone_->c5 + num_classes,
                                                                 seg_head(width), rng, true));
     drop_ = register_module("drop", std::make_shared<Dropout>(dropout, seed));
     out_ = register_module(
-        "out", std::make_shared<Conv1x1>(head_->out_channels(), 3 * num_keypoints, rng));
+        "out", std::make_shared<Conv1x1>(head_->out_channels(),
+                                         (class_heads ? num_classes : 1) * 3 * num_keypoints, rng));
 }
 
 EvfOut EvfNet::forward(const Tensor& x, const Tensor& onehot) {
     check_points_input("EvfNet", x, onehot, num_classes_);
     const PointFeatures f = backbone_->forward_features(x, onehot);
     const Tensor h = drop_->forward(head_->forward(f.point(), f.global()));
-    return {out_->forward(h), f.detached()};
+    Tensor v = out_->forward(h);
+    if (class_heads_) v = select_class_block(v, onehot);
+    return {v, f.detached()};
 }
 
 // ---- RotNet ----
 
 RotNet::RotNet(double width, int64_t num_classes, int64_t num_keypoints, bool use_vectors,
-               double dropout, Rng& rng, uint64_t seed)
-    : num_classes_(num_classes), num_keypoints_(num_keypoints), use_vectors_(use_vectors) {
+               double dropout, Rng& rng, uint64_t seed, bool class_heads)
+    : num_classes_(num_classes),
+      num_keypoints_(num_keypoints),
+      use_vectors_(use_vectors),
+      class_heads_(class_heads) {
     if (!use_vectors)
         backbone_ = register_module("backbone", std::make_shared<PointBackbone>(width, rng));
     const int64_t c1 = scaled_width(64, width), c2 = scaled_width(128, width),
@@ -204,8 +227,9 @@ RotNet::RotNet(double width, int64_t num_classes, int64_t num_keypoints, bool us
                                                          scaled_width(128, width)},
                                     rng, true, true));
     drop_ = register_module("drop", std::make_shared<Dropout>(dropout, seed));
-    out_ = register_module("out", std::make_shared<Linear>(scaled_width(128, width),
-                                                           3 * num_keypoints, rng));
+    out_ = register_module("out", std::make_shared<Linear>(
+                                      scaled_width(128, width),
+                                      (class_heads ? num_classes : 1) * 3 * num_keypoints, rng));
 }
 
 PointFeatures RotNet::features(const Tensor& x, const Tensor& onehot) {
@@ -227,15 +251,16 @@ Tensor RotNet::forward(const Tensor& vectors, const PointFeatures& feat) {
                   vectors.desc());
     }
     const Tensor g = max_pool_points(mlp_->forward(point, feat.global()));  // [B, 256]
-    const Tensor kp = out_->forward(drop_->forward(fc_->forward(g)));      // [B, 3K]
+    Tensor kp = out_->forward(drop_->forward(fc_->forward(g)));  // [B, 3K] or [B, C*3K]
+    if (class_heads_) kp = select_class_block(kp, feat.onehot);
     return kp.reshape({kp.size(0), num_keypoints_, 3});
 }
 
 // ---- RreNet ----
 
 RreNet::RreNet(double width, int64_t num_classes, int64_t num_keypoints, double dropout_in,
-               Rng& rng, uint64_t seed)
-    : num_classes_(num_classes), num_keypoints_(num_keypoints) {
+               Rng& rng, uint64_t seed, bool class_heads)
+    : num_classes_(num_classes), num_keypoints_(num_keypoints), class_heads_(class_heads) {
     drop_ = register_module("drop", std::make_shared<Dropout>(dropout_in, seed));
     const int64_t c1 = scaled_width(64, width), c2 = scaled_width(128, width),
                   c5 = scaled_width(1024, width);
@@ -244,8 +269,9 @@ RreNet::RreNet(double width, int64_t num_classes, int64_t num_keypoints, double 
                                       std::vector<int64_t>{scaled_width(256, width),
                                                            scaled_width(128, width)},
                                       rng, /*relu_last=*/false));
-    out_ = register_module("out", std::make_shared<Linear>(scaled_width(128, width),
-                                                           3 * num_keypoints, rng));
+    out_ = register_module("out", std::make_shared<Linear>(
+                                      scaled_width(128, width),
+                                      (class_heads ? num_classes : 1) * 3 * num_keypoints, rng));
 }
 
 Tensor RreNet::forward(const PointFeatures& feat) {
@@ -257,7 +283,8 @@ Tensor RreNet::forward(const PointFeatures& feat) {
     for (const Tensor& t : feat.point()) point.push_back(drop_->forward(t));
     for (const Tensor& t : feat.global()) global.push_back(drop_->forward(t));
     const Tensor g = max_pool_points(mlp_->forward(point, global));  // [B, 128]
-    const Tensor r = out_->forward(g);                                // [B, 3K]
+    Tensor r = out_->forward(g);  // [B, 3K] or [B, C*3K]
+    if (class_heads_) r = select_class_block(r, feat.onehot);
     return r.reshape({r.size(0), num_keypoints_, 3});
 }
 

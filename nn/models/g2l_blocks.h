@@ -46,6 +46,12 @@ struct PointFeatures {
     std::vector<Tensor> global() const { return {g, onehot}; }
 };
 
+/// Per-class output heads (G2LConfig::class_heads): `x` holds one block of F channels per
+/// class, [B, C*F] or [B, C*F, N]; returns the block of each sample's class as [B, F] or
+/// [B, F, N] (a one-hot-weighted sum, so gradients reach only that block). Throws naming the
+/// shapes unless x's channel count is a multiple of onehot's C.
+Tensor select_class_block(const Tensor& x, const Tensor& onehot);
+
 /// Throws unless x is [B, 3, N] with B, N > 0 (f32/f64) and onehot is [B, num_classes] of the
 /// same dtype; the message names `who` and the offending shape.
 void check_points_input(const char* who, const Tensor& x, const Tensor& onehot,
@@ -126,14 +132,16 @@ struct EvfOut {
 /// Children: backbone, head, drop, out.
 class EvfNet : public Module {
 public:
+    /// class_heads: the output layer has one 3K block per class (select_class_block).
     EvfNet(double width, int64_t num_classes, int64_t num_keypoints, double dropout, Rng& rng,
-           uint64_t dropout_seed);
+           uint64_t dropout_seed, bool class_heads = false);
     /// x: [B, 3, N] canonical points, onehot [B, C]. The head sees the live backbone features,
     /// so any loss on `vectors` trains the head AND this backbone (as the official code).
     EvfOut forward(const Tensor& x, const Tensor& onehot);
 
 private:
     int64_t num_classes_, num_keypoints_;
+    bool class_heads_;
     std::shared_ptr<PointBackbone> backbone_;
     std::shared_ptr<ConcatMlp> head_;
     std::shared_ptr<Dropout> drop_;
@@ -148,7 +156,7 @@ private:
 class RotNet : public Module {
 public:
     RotNet(double width, int64_t num_classes, int64_t num_keypoints, bool use_vectors,
-           double dropout, Rng& rng, uint64_t dropout_seed);
+           double dropout, Rng& rng, uint64_t dropout_seed, bool class_heads = false);
     /// vectors: [B, 3K, N] (block A's output, not detached) if use_vectors, else undefined;
     /// feat: features of the same N points -> keypoints [B, K, 3] (canonical frame, mm).
     Tensor forward(const Tensor& vectors, const PointFeatures& feat);
@@ -158,7 +166,7 @@ public:
 
 private:
     int64_t num_classes_, num_keypoints_;
-    bool use_vectors_;
+    bool use_vectors_, class_heads_;
     std::shared_ptr<PointBackbone> backbone_;
     std::shared_ptr<ConcatMlp> mlp_;
     std::shared_ptr<Mlp> fc_;
@@ -176,12 +184,13 @@ private:
 class RreNet : public Module {
 public:
     RreNet(double width, int64_t num_classes, int64_t num_keypoints, double dropout_in, Rng& rng,
-           uint64_t dropout_seed);
+           uint64_t dropout_seed, bool class_heads = false);
     /// feat: detached features of N points -> residual [B, K, 3] (mm).
     Tensor forward(const PointFeatures& feat);
 
 private:
     int64_t num_classes_, num_keypoints_;
+    bool class_heads_;
     std::shared_ptr<Dropout> drop_;
     std::shared_ptr<ConcatMlp> mlp_;
     std::shared_ptr<Linear> out_;

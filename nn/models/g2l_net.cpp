@@ -47,12 +47,15 @@ G2LNet::G2LNet(const G2LConfig& config) : cfg_(checked(config)) {
     seg_ = register_module("seg", std::make_shared<SegNet>(w, C, p, rng, seeds.next_u64()));
     tnet_ = register_module("tnet", std::make_shared<TNet>(w, C, p, rng, seeds.next_u64()));
     if (cfg_.evf)
-        evf_ = register_module("evf", std::make_shared<EvfNet>(w, C, K, p, rng, seeds.next_u64()));
+        evf_ = register_module("evf", std::make_shared<EvfNet>(w, C, K, p, rng, seeds.next_u64(),
+                                                                cfg_.class_heads));
     rot_ = register_module("rot",
-                           std::make_shared<RotNet>(w, C, K, cfg_.evf, p, rng, seeds.next_u64()));
+                           std::make_shared<RotNet>(w, C, K, cfg_.evf, p, rng, seeds.next_u64(),
+                                                    cfg_.class_heads));
     if (cfg_.rre)
         rre_ = register_module(
-            "rre", std::make_shared<RreNet>(w, C, K, cfg_.rre_dropout, rng, seeds.next_u64()));
+            "rre", std::make_shared<RreNet>(w, C, K, cfg_.rre_dropout, rng, seeds.next_u64(),
+                                             cfg_.class_heads));
 }
 
 Tensor G2LNet::scaled(const Tensor& t) const {

@@ -38,6 +38,11 @@ struct G2LConfig {
     /// object). The network itself only sees the `scale` tensor; callers compute it with
     /// rotation_scale(). out_scale_mm does not apply to the rotation branch under "kp_rms".
     std::string rot_unit = "mm";
+    /// One output block per class in the last layers of blocks A, B and C (each sample reads
+    /// its class's block; the one-hot still enters the heads as in the paper). Without it the
+    /// classes share the output layer and one model of many objects learns each object's
+    /// keypoints far more slowly (docs/experiments.md).
+    bool class_heads = false;
 };
 
 /// Scale (mm per unit) of the rotation branch for an object with these model keypoints under

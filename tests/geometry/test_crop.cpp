@@ -6,6 +6,8 @@
 #include "core/error.h"
 #include "geom_test_util.h"
 #include "geometry/crop.h"
+#include "core/rng.h"
+#include <cmath>
 
 using namespace g2l::geom;
 using Catch::Contains;
@@ -67,4 +69,56 @@ TEST_CASE("crop_slab_adaptive widens the slab like chooselimt_test", "[geometry]
     CHECK(crop_slab_adaptive(make(10, 3, 3), 1000, 100, prm, &f).size() == 10);
     CHECK(f == 1);
     REQUIRE_THROWS_WITH(crop_slab_adaptive(make(1, 1, 1), 1000, 0), Contains("diameter"));
+}
+
+TEST_CASE("crop_indices: the one crop step agrees with crop_sphere / crop_slab", "[geometry]") {
+    g2l::Rng rng(5);
+    Points p(3000, 3);
+    for (int i = 0; i < p.rows(); ++i)
+        p.row(i) = Eigen::RowVector3f(float(rng.uniform(-200, 200)), float(rng.uniform(-200, 200)),
+                                      float(rng.uniform(400, 800)));
+    const Eigen::Vector3d c(10, -20, 600);
+    CHECK(crop_indices("sphere", p, c, 120) == crop_sphere(p, c, 120));
+    CHECK(crop_indices("slab", p, c, 50) == crop_slab(p, 600, 50));
+    const auto all = crop_indices("frustum", p, c, 0);  // no radius needed
+    REQUIRE(all.size() == 3000);
+    CHECK(all.back() == 2999);
+    CHECK(crop_indices("sphere", p, c, 120).size() < 3000);
+    REQUIRE_THROWS_WITH(crop_indices("cube", p, c, 1), Contains("\"cube\""));
+    REQUIRE_THROWS_WITH(crop_indices("sphere", p, c, 0), Contains("radius"));
+    REQUIRE_THROWS_WITH(crop_indices("sphere", p, Eigen::Vector3d(NAN, 0, 0), 5), Contains("not finite"));
+}
+
+TEST_CASE("clip_box and box_centre: boxes partly or wholly outside, depth holes", "[geometry]") {
+    CHECK(clip_box({-5, -5, 20, 20}, 10, 10).x == 0);
+    CHECK(clip_box({-5, -5, 20, 20}, 10, 10).w == 10);
+    CHECK(clip_box({8, 8, 20, 20}, 10, 10).w == 2);
+    CHECK(clip_box({10, 0, 5, 5}, 10, 10).empty());
+    CHECK(clip_box({0, 0, -3, 5}, 10, 10).empty());
+    CHECK(clip_box({2147483000, 0, 2000, 5}, 10, 10).empty());  // no overflow
+    Intrinsics K;
+    K.fx = K.fy = 100;
+    K.cx = K.cy = 5;
+    // A 10 x 10 depth: a near object (500 mm) in the centre, the background at 900 mm.
+    std::vector<float> d(100, 900.f);
+    for (int v = 3; v < 7; ++v)
+        for (int u = 3; u < 7; ++u) d[size_t(v * 10 + u)] = 500.f;
+    Eigen::Vector3d c;
+    REQUIRE(box_centre(d.data(), 10, 10, K, {0, 0, 10, 10}, &c));
+    CHECK(c.z() == 500.0);  // the central third is the object
+    // The median of the central third is lifted: the centre pixel nearest the box centre.
+    CHECK(std::abs(c.x()) <= 0.5 * 500 / 100 * 2);
+    // Holes (NaN, inf, 0, negative) are skipped; a box with none valid gives false.
+    std::vector<float> holes(100, NAN);
+    holes[0] = INFINITY, holes[1] = 0, holes[2] = -5;
+    CHECK_FALSE(box_centre(holes.data(), 10, 10, K, {0, 0, 10, 10}, &c));
+    holes[99] = 700;  // outside the central third, found by the whole-box pass
+    REQUIRE(box_centre(holes.data(), 10, 10, K, {0, 0, 10, 10}, &c));
+    CHECK(c.z() == 700.0);
+    CHECK(c.x() == Approx((9 - 5) * 700.0 / 100));
+    CHECK_FALSE(box_centre(d.data(), 10, 10, K, {20, 20, 5, 5}, &c));  // outside the image
+    K.fx = 0;
+    REQUIRE_THROWS_WITH(box_centre(d.data(), 10, 10, K, {0, 0, 10, 10}, &c), Contains("fx 0"));
+    K.fx = 100;
+    REQUIRE_THROWS_WITH(box_centre(nullptr, 10, 10, K, {0, 0, 10, 10}, &c), Contains("no depth"));
 }

@@ -428,3 +428,66 @@ TEST_CASE("rot_forward: a per-sample scale divides the input and scales the outp
     for (size_t i = 0; i < k1.size(); ++i) CHECK(k2[i] == Approx(2 * k1[i]).margin(1e-4));
     CHECK_THROWS_WITH(net.rot_forward(x, oh, Tensor::ones({1, 3})), Catch::Contains("[B, 1, 1]"));
 }
+
+TEST_CASE("select_class_block: picks each sample's block; gradients reach only that block",
+          "[nn][g2l][grad]") {
+    // x [B=3, C*F = 4*2] and [B, C*F, N=3]; classes 2, 0, 3.
+    Rng rng(11);
+    Tensor x = Tensor::randn({3, 8}, rng);
+    const Tensor oh = onehot_of({2, 0, 3}, 4);
+    const Tensor y = nn::select_class_block(x, oh);
+    REQUIRE(y.shape() == Shape{3, 2});
+    const float* xv = x.data<float>();
+    CHECK(y.data<float>()[0] == xv[0 * 8 + 2 * 2]);
+    CHECK(y.data<float>()[1] == xv[0 * 8 + 2 * 2 + 1]);
+    CHECK(y.data<float>()[2] == xv[1 * 8 + 0]);
+    CHECK(y.data<float>()[5] == xv[2 * 8 + 3 * 2 + 1]);
+    Tensor x3 = Tensor::randn({3, 8, 3}, rng);
+    const Tensor y3 = nn::select_class_block(x3, oh);
+    REQUIRE(y3.shape() == Shape{3, 2, 3});
+    // sample 1 (class 0), channel 1, point 2 = x3[1, 0*2 + 1, 2]
+    CHECK(y3.data<float>()[(1 * 2 + 1) * 3 + 2] == x3.data<float>()[(1 * 8 + 1) * 3 + 2]);
+    const Tensor oh64 = oh.to(DType::F64);
+    Tensor xin = testing::distinct_values({3, 8, 3}, 5);
+    xin.set_requires_grad(true);
+    testing::gradcheck([&](const std::vector<Tensor>& in) { return nn::select_class_block(in[0], oh64); },
+                       {xin});
+    CHECK_THROWS_WITH(nn::select_class_block(Tensor::zeros({3, 7}), oh), Catch::Contains("[B, C*F]"));
+    CHECK_THROWS_WITH(nn::select_class_block(x, Tensor::zeros({2, 4})), Catch::Contains("onehot"));
+}
+
+TEST_CASE("G2LNet class_heads: one output block per class in A, B and C; classes train apart",
+          "[nn][g2l]") {
+    nn::G2LConfig c;
+    c.num_classes = 3;
+    c.width = 0.125;
+    c.rot_unit = "kp_rms";
+    c.class_heads = true;
+    nn::G2LNet net(c);
+    const int K = c.num_keypoints;
+    CHECK(param_named(net, "rot.out.weight").size(0) == 3 * 3 * K);
+    CHECK(param_named(net, "evf.out.weight").size(0) == 3 * 3 * K);
+    CHECK(param_named(net, "rre.out.weight").size(0) == 3 * 3 * K);
+    nn::G2LConfig plain = c;
+    plain.class_heads = false;
+    CHECK(nn::G2LNet(plain).num_parameters() < net.num_parameters());
+    // A loss on class 1's samples only: block B's output rows of classes 0 and 2 get no gradient.
+    Rng rng(4);
+    const Tensor x = Tensor::randn({2, 3, 30}, rng);
+    const Tensor oh = onehot_of({1, 1}, 3);
+    const nn::RotOut r = net.rot_forward(x, oh, Tensor::ones({2, 1, 1}));
+    REQUIRE(r.keypoints.shape() == Shape{2, K, 3});
+    REQUIRE(r.vectors.shape() == Shape{2, 3 * K, 30});
+    nn::sum(nn::square(r.keypoints)).backward();
+    const Tensor g = param_named(net, "rot.out.weight").grad();
+    REQUIRE(g.defined());
+    const int64_t in = g.size(1);
+    double other = 0, own = 0;
+    for (int64_t row = 0; row < 3 * 3 * K; ++row)
+        for (int64_t j = 0; j < in; ++j) {
+            const double v = std::abs(g.data<float>()[row * in + j]);
+            (row / (3 * K) == 1 ? own : other) += v;
+        }
+    CHECK(other == 0.0);
+    CHECK(own > 0.0);
+}

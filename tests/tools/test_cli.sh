@@ -20,10 +20,10 @@ expect() {
 has() { grep -q -- "$1" "$T/err" || fail "stderr lacks '$1'"; }
 hasnt() { ! grep -q -- "$1" "$T/err" || fail "stderr has '$1'"; }
 
-for tool in train/g2l_train train/g2l_eval train/g2l_bench train/g2l_rotstudy data/g2l_render; do
+for tool in train/g2l_train train/g2l_eval train/g2l_bench train/g2l_rotstudy data/g2l_render apps/g2l_infer; do
     expect 2 "$B/$tool" --no-such-option
     # (g2l_eval and g2l_rotstudy name their missing required option first)
-    case $tool in *g2l_eval|*g2l_rotstudy) has "required" ;; *) has "--no-such-option" ;; esac
+    case $tool in *g2l_eval|*g2l_rotstudy|*g2l_infer) has "required" ;; *) has "--no-such-option" ;; esac
     [ "$(wc -l <"$T/err")" -le 2 ] || fail "$tool: a usage error takes more than 2 lines"
     expect 0 "$B/$tool" --help
     grep -q "Usage" "$T/out" || fail "$tool --help prints no usage"
@@ -76,4 +76,38 @@ expect 1 "$B/data/g2l_render" --models "$M" --out "$T/r" --frames 1 --threads 1
 has "already holds a rendered scene"
 expect 0 "$B/data/g2l_render" --models "$M" --out "$T/r" --frames 1 --threads 1 --force
 [ ! -e "$T/r/train_synt/000000/rgb/000001.png" ] || fail "a stale frame survived --force"
+# g2l_infer and g2l_eval with boxes from a detection file.
+F="$S/tests/data/ycbv_mini/train_real/000000"
+MODEL="$S/models/ycbv_sim2real.g2l"
+cat > "$T/dets.json" <<'JSON'
+[{"scene_id": 0, "image_id": 1, "category_id": 8, "bbox": [186, 132, 139, 191], "score": 0.8, "time": 0.1},
+ {"scene_id": 0, "image_id": 1, "category_id": 14, "bbox": [335, 106, 169, 189], "score": 0.7, "time": 0.1},
+ {"scene_id": 0, "image_id": 1, "category_id": 14, "bbox": [700, 0, 20, 20], "score": 0.1, "time": 0.1}]
+JSON
+expect 2 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json"
+has "exactly one of --boxes and --box"
+expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" --box 8,1,2,3
+has "expected OBJ_ID,X,Y,W,H"
+expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" --box 8,186,132,139,191
+has "for a scene_camera.json give --image-id"
+printf '[{"category_id": 8, "bbox": [1, 2, 3]}]' > "$T/bad.json"
+expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" --image-id 1 --boxes "$T/bad.json"
+has "bad.json' entry 0: 'bbox' must be"
+expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$T/none.png" --camera "$F/scene_camera.json" --image-id 1 --boxes "$T/dets.json"
+has "none.png"
+expect 0 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --rgb "$F/rgb/000001.png" \
+    --camera "$F/scene_camera.json" --image-id 1 --boxes "$T/dets.json" --vis "$T/vis.png" --json "$T/poses.json"
+[ -s "$T/vis.png" ] || fail "g2l_infer --vis wrote no image"
+[ "$(grep -c '"status": "ok"' "$T/poses.json")" -eq 2 ] || fail "g2l_infer: expected 2 poses in $(cat "$T/poses.json")"
+grep -q '"status": "box outside image"' "$T/poses.json" || fail "the box right of the image got no status"
+expect 2 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real --boxes file
+has "needs --detections"
+expect 0 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
+    --boxes file --detections "$T/dets.json" --bop-csv "$T/res.csv" --instances "$T/inst.jsonl" --vis "$T/vis"
+head -n1 "$T/res.csv" | grep -q "^scene_id,im_id,obj_id,score,R,t,time$" || fail "BOP CSV header"
+[ "$(wc -l < "$T/res.csv")" -eq 3 ] || fail "BOP CSV: expected 2 rows (image 1), got $(cat "$T/res.csv")"
+grep -q "^0,1,14,0.700000," "$T/res.csv" || fail "BOP CSV: object 14 should take its best detection (0.7)"
+[ "$(wc -l < "$T/inst.jsonl")" -eq 4 ] || fail "instances: expected 4 lines"
+[ "$(grep -c '"status":"no detection"' "$T/inst.jsonl")" -eq 2 ] || fail "image 11 has no detections: 2 misses expected"
+[ -s "$T/vis/000000_1.png" ] && [ -s "$T/vis/accuracy_obj_8.png" ] || fail "g2l_eval --vis images"
 echo "cli: every check passed"

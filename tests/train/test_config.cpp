@@ -54,7 +54,7 @@ json everything() {
                    "surface_spacing_mm": 3, "min_points": 20, "min_visib_fract": 0.3},
       "augment": {"enabled": false, "shift_mm": [1, 2, 3], "rot_deg": 15, "point_noise_mm": 1.5},
       "model": {"num_classes": 21, "keypoints": "fps12", "evf": false, "rre": false,
-                "width": 0.5, "dropout": 0.1, "out_scale_mm": 100, "rot_unit": "mm"},
+                "width": 0.5, "dropout": 0.1, "out_scale_mm": 100, "rot_unit": "mm", "class_heads": true},
       "loss": {"seg": 1, "t": 2, "vec": 3, "kp": 4, "res": 5, "t_loss": "smooth_l1",
                "symmetric_targets": true, "rot_centre": "pred", "rot_centre_noise_mm": 7,
                "rot_gt_points_epochs": 2, "rot_only_epochs": 3},
@@ -232,6 +232,7 @@ TEST_CASE("config: every key round-trips through config_to_json", "[config]") {
     CHECK(c.model.width == 0.5);
     CHECK(c.model.dropout == 0.1);
     CHECK(c.model.out_scale_mm == 100);
+    CHECK(c.model.class_heads);
     CHECK(c.loss.symmetric_targets);
     CHECK(c.loss.seg == 1);
     CHECK(c.loss.t == 2);
@@ -603,9 +604,10 @@ TEST_CASE("config: every shipped config parses", "[config]") {
     const TrainConfig& s = cfg.at("ycbv_sim2real");
     CHECK(s.data.object_ids.size() == 21);
     CHECK(s.model.num_classes == 21);
-    CHECK(s.model.width == 0.5);
+    CHECK(s.model.width == 0.25);
+    CHECK(s.model.class_heads);
     CHECK(s.train.batch == 16);
-    CHECK(s.train.time_limit_min == 100);
+    CHECK(s.train.time_limit_min == 125);
     CHECK(s.model.rot_unit == "kp_rms");
     CHECK(s.loss.symmetric_targets);
     CHECK(s.data.train[0].scene.find("\"resting\"") != std::string::npos);

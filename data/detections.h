@@ -1,0 +1,31 @@
+// SPDX-License-Identifier: MIT
+// 2D detections in the BOP Challenge's detection-file format (the "default detections" of
+// BOP 2022+): a JSON array of {"scene_id", "image_id", "category_id", "bbox": [x, y, w, h],
+// "score", "time"}, one entry per detected object instance. `obj_id` is accepted for
+// `category_id`; scene_id / image_id / score / time are optional (-1 / -1 / 1 / -1).
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace g2l::data {
+
+struct Detection {
+    int scene_id = -1, image_id = -1;  ///< -1 when the file does not say
+    int obj_id = 0;                    ///< category_id (BOP object id, >= 1)
+    double x = 0, y = 0, w = 0, h = 0; ///< pixels
+    double score = 1;
+    double time = -1;                  ///< seconds the detector took for the image (-1: unknown)
+};
+
+/// Parses a BOP detection file. Throws g2l::Error naming the file, the entry index and the key
+/// for: a missing/unreadable file, text that is not JSON, a top level that is not an array, an
+/// entry that is not an object, an unknown key (a typo must not be ignored), a missing
+/// category_id/obj_id or bbox, ids that are not integers (obj_id >= 1, scene/image >= 0), a bbox
+/// that is not 4 finite numbers with w, h >= 0, or a score/time that is not a finite number.
+std::vector<Detection> load_bop_detections(const std::string& path);
+
+/// The same for JSON text already in memory; `what` names it in errors.
+std::vector<Detection> parse_bop_detections(const std::string& json_text, const std::string& what);
+
+}  // namespace g2l::data

@@ -1,0 +1,147 @@
+// SPDX-License-Identifier: MIT
+// g2l — G2L-Net 6D object pose estimation from RGB-D frames, as a library.
+//
+// The whole public API: load a trained model (an inference export written by
+// `g2l_train --export`, or a training checkpoint), then ask for the poses of the objects in
+// 2D boxes of an RGB-D frame. Plain buffers and standard types only: no Eigen, OpenCV or
+// g2l-internal headers are needed to use it.
+//
+//   #include <g2l/pose_estimator.h>
+//   g2l::PoseEstimator est("models/ycbv_sim2real.g2l");
+//   g2l::FrameView f;                      // borrowed buffers
+//   f.width = 640; f.height = 480;
+//   f.depth_u16 = depth.data(); f.depth_scale = 0.1;   // BOP YCB-V: 0.1 mm per unit
+//   f.K = {1066.778, 1067.487, 312.9869, 241.3109};
+//   for (const g2l::ObjectPose& p : est.estimate(f, {{5, 300, 200, 80, 160}}))
+//       if (p.ok()) use(p.R, p.t);         // model -> camera, row-major R, t in mm
+//
+// Errors: invalid arguments and unreadable/corrupt model files throw std::runtime_error with a
+// message that names the file, field or value. A box that cannot give a pose (object unknown
+// to the model, box outside the image, no depth, too few points) does not throw: its
+// ObjectPose carries the reason in `status` and the other boxes of the frame go on.
+//
+// Thread safety: a PoseEstimator may be shared between threads; calls to estimate() on one
+// object are serialised (an internal mutex), so use one PoseEstimator per thread to run
+// frames in parallel. The networks use the OpenMP threads set by EstimatorOptions::threads.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#if defined(__GNUC__)
+#define G2L_API __attribute__((visibility("default")))
+#else
+#define G2L_API
+#endif
+
+namespace g2l {
+
+/// Pinhole intrinsics in pixels: u = fx X / Z + cx, v = fy Y / Z + cy.
+struct CameraIntrinsics {
+    double fx = 0, fy = 0, cx = 0, cy = 0;
+};
+
+/// One RGB-D frame as borrowed, row-major, unpadded buffers of width x height pixels.
+/// Exactly one of depth_u16 / depth_mm is set. Depth 0, NaN or inf means "no measurement".
+struct FrameView {
+    int width = 0, height = 0;
+    const uint8_t* rgb = nullptr;         ///< optional RGB (3 bytes per pixel); the pose
+                                          ///< networks use depth only
+    const uint16_t* depth_u16 = nullptr;  ///< raw depth; z = value * depth_scale (mm)
+    double depth_scale = 1.0;             ///< mm per unit of depth_u16 (BOP: scene_camera.json)
+    const float* depth_mm = nullptr;      ///< depth already in mm
+    CameraIntrinsics K;
+};
+
+/// A 2D box around one object, in pixels (BOP bbox convention: x, y, width, height).
+struct ObjectBox {
+    int obj_id = 0;      ///< the object's id in the model (BOP obj_id)
+    int x = 0, y = 0, w = 0, h = 0;
+    double score = 1.0;  ///< the detector's confidence; copied to ObjectPose::score
+};
+
+/// Why a box got no pose.
+enum class PoseStatus {
+    ok,                    ///< R and t are set
+    unknown_object,        ///< the model was not trained on this obj_id
+    box_outside_image,     ///< the box has no pixel inside the image
+    no_depth,              ///< no valid depth in the box
+    too_few_points,        ///< fewer than 10 depth points in the 3D crop
+    too_few_object_points  ///< the segmentation kept fewer than 10 points
+};
+
+/// "ok", "unknown object", "box outside image", "no depth", "too few points",
+/// "too few object points".
+G2L_API const char* to_string(PoseStatus status);
+
+/// Wall time of the stages of one box, in milliseconds.
+struct PoseTimings {
+    double crop_ms = 0;         ///< box centre, back-projection and 3D crop
+    double segmentation_ms = 0;
+    double translation_ms = 0;
+    double rotation_ms = 0;     ///< blocks A, B, C and the two Kabsch fits
+    double total_ms = 0;
+};
+
+/// The result for one box.
+struct ObjectPose {
+    int obj_id = 0;
+    PoseStatus status = PoseStatus::ok;
+    std::array<double, 9> R{{1, 0, 0, 0, 1, 0, 0, 0, 1}};  ///< model -> camera, row-major
+    std::array<double, 3> t{{0, 0, 0}};                    ///< model origin in the camera, mm
+    double score = 0;              ///< the box's score
+    int num_crop_points = 0;       ///< depth points in the 3D crop
+    int num_object_points = 0;     ///< of those, segmented as the object
+    PoseTimings timings;
+    bool ok() const { return status == PoseStatus::ok; }
+};
+
+/// Options of a PoseEstimator; the defaults reproduce the settings the model was trained with.
+struct EstimatorOptions {
+    int threads = 0;          ///< OpenMP threads for the networks (0 = leave as they are)
+    int crop_points = -1;     ///< points of the crop the segmentation sees (-1: the model's
+                              ///< `sampling.points`; 0: the whole crop)
+    int object_points = -1;   ///< object points fed to the translation and rotation networks
+                              ///< (-1: the model's `sampling.seg_points`)
+    std::string models_info;  ///< a BOP models_info.json giving the object diameters, for
+                              ///< model files that do not store them (older checkpoints)
+};
+
+/// G2L-Net's pose pipeline for the objects of one trained model.
+class G2L_API PoseEstimator {
+public:
+    /// Loads `model_path` (an export or a training checkpoint). Throws std::runtime_error
+    /// naming the file for a missing, truncated or corrupt file, and for objects whose
+    /// diameter is unknown (see EstimatorOptions::models_info).
+    explicit PoseEstimator(const std::string& model_path, const EstimatorOptions& options = {});
+    ~PoseEstimator();
+    PoseEstimator(PoseEstimator&&) noexcept;
+    PoseEstimator& operator=(PoseEstimator&&) noexcept;
+    PoseEstimator(const PoseEstimator&) = delete;
+    PoseEstimator& operator=(const PoseEstimator&) = delete;
+
+    /// One ObjectPose per box, in the order of `boxes`. Throws std::runtime_error for an
+    /// invalid frame: size <= 0, no depth or both depth buffers, depth_scale not finite and
+    /// > 0, focal lengths not finite and > 0, principal point not finite.
+    std::vector<ObjectPose> estimate(const FrameView& frame, const std::vector<ObjectBox>& boxes);
+
+    /// The obj_ids the model knows, ascending.
+    std::vector<int> object_ids() const;
+    /// The diameter (mm) of a known object; throws std::runtime_error for another id.
+    double diameter(int obj_id) const;
+    /// The model's K keypoints of an object in its frame (mm), as x0 y0 z0 x1 ...; throws for
+    /// an unknown id.
+    std::vector<double> keypoints(int obj_id) const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+/// The library's version, "MAJOR.MINOR.PATCH".
+G2L_API const char* version();
+
+}  // namespace g2l

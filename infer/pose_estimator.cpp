@@ -1,0 +1,196 @@
+// SPDX-License-Identifier: MIT
+// g2l::PoseEstimator: the crop step (geometry/crop.h, shared with training samples and
+// g2l_eval) in front of nn::estimate_pose, behind a header of plain types.
+#include "g2l/pose_estimator.h"
+
+#include <chrono>
+#include <cmath>
+#include <mutex>
+
+#include "core/error.h"
+#include "core/threads.h"
+#include "geometry/camera.h"
+#include "geometry/crop.h"
+#include "geometry/model_info.h"
+#include "nn/models/g2l_io.h"
+#include "nn/models/g2l_pose.h"
+
+#ifndef G2L_VERSION_STRING
+#define G2L_VERSION_STRING "0.0.0"
+#endif
+
+namespace g2l {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+}  // namespace
+
+const char* version() { return G2L_VERSION_STRING; }
+
+const char* to_string(PoseStatus s) {
+    switch (s) {
+        case PoseStatus::ok: return "ok";
+        case PoseStatus::unknown_object: return "unknown object";
+        case PoseStatus::box_outside_image: return "box outside image";
+        case PoseStatus::no_depth: return "no depth";
+        case PoseStatus::too_few_points: return "too few points";
+        case PoseStatus::too_few_object_points: return "too few object points";
+    }
+    return "unknown status";
+}
+
+struct PoseEstimator::Impl {
+    std::string path;
+    nn::LoadedModel model;
+    EstimatorOptions options;
+    int crop_points = 0, object_points = 1;
+    std::mutex mutex;
+    std::vector<float> depth_mm;  // the frame's depth in mm (reused between frames)
+};
+
+PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+    Impl& m = *impl_;
+    m.path = model_path;
+    m.options = options;
+    G2L_CHECK(options.threads >= 0, "PoseEstimator: threads must be >= 0, got ", options.threads);
+    G2L_CHECK(options.crop_points >= -1, "PoseEstimator: crop_points must be >= -1, got ",
+              options.crop_points);
+    G2L_CHECK(options.object_points == -1 || options.object_points >= 1,
+              "PoseEstimator: object_points must be -1 or >= 1, got ", options.object_points);
+    m.model = nn::load_model(model_path);
+    m.crop_points = options.crop_points >= 0 ? options.crop_points : m.model.points;
+    m.object_points = options.object_points >= 1 ? options.object_points : m.model.seg_points;
+    if (!options.models_info.empty()) {
+        const auto infos = geom::load_models_info_json(options.models_info);
+        for (const auto& [id, cls] : m.model.class_of) {
+            (void)cls;
+            if (!m.model.objects.count(id) && infos.count(id))
+                m.model.objects[id] = {infos.at(id).diameter, infos.at(id).symmetric};
+        }
+    }
+    for (const auto& [id, cls] : m.model.class_of) {
+        (void)cls;
+        G2L_CHECK(m.model.objects.count(id), "PoseEstimator: '", model_path,
+                  "' does not store the diameter of object ", id,
+                  " (a file written before 2026-12-02): give a BOP models_info.json in "
+                  "EstimatorOptions::models_info, or re-export it with g2l_train --export");
+    }
+}
+
+PoseEstimator::~PoseEstimator() = default;
+PoseEstimator::PoseEstimator(PoseEstimator&&) noexcept = default;
+PoseEstimator& PoseEstimator::operator=(PoseEstimator&&) noexcept = default;
+
+std::vector<int> PoseEstimator::object_ids() const {
+    std::vector<int> ids;
+    for (const auto& [id, cls] : impl_->model.class_of) ids.push_back(id), (void)cls;
+    return ids;
+}
+
+double PoseEstimator::diameter(int obj_id) const {
+    const auto it = impl_->model.objects.find(obj_id);
+    G2L_CHECK(it != impl_->model.objects.end() && impl_->model.class_of.count(obj_id),
+              "PoseEstimator::diameter: object ", obj_id, " is not in '", impl_->path, "'");
+    return it->second.diameter;
+}
+
+std::vector<double> PoseEstimator::keypoints(int obj_id) const {
+    const auto it = impl_->model.class_of.find(obj_id);
+    G2L_CHECK(it != impl_->model.class_of.end(), "PoseEstimator::keypoints: object ", obj_id,
+              " is not in '", impl_->path, "'");
+    std::vector<double> out;
+    for (const auto& p : impl_->model.keypoints[size_t(it->second)])
+        out.insert(out.end(), {double(p.x()), double(p.y()), double(p.z())});
+    return out;
+}
+
+std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
+                                                const std::vector<ObjectBox>& boxes) {
+    G2L_CHECK(f.width > 0 && f.height > 0, "PoseEstimator::estimate: frame size must be positive, got ",
+              f.width, " x ", f.height);
+    G2L_CHECK((f.depth_u16 != nullptr) != (f.depth_mm != nullptr),
+              "PoseEstimator::estimate: set exactly one of FrameView::depth_u16 and depth_mm (",
+              f.depth_u16 ? "both" : "neither", " given)");
+    G2L_CHECK(!f.depth_u16 || (std::isfinite(f.depth_scale) && f.depth_scale > 0),
+              "PoseEstimator::estimate: depth_scale must be finite and > 0, got ", f.depth_scale);
+    G2L_CHECK(std::isfinite(f.K.fx) && std::isfinite(f.K.fy) && f.K.fx > 0 && f.K.fy > 0,
+              "PoseEstimator::estimate: focal lengths must be finite and > 0, got fx=", f.K.fx,
+              " fy=", f.K.fy);
+    G2L_CHECK(std::isfinite(f.K.cx) && std::isfinite(f.K.cy),
+              "PoseEstimator::estimate: principal point must be finite, got cx=", f.K.cx,
+              " cy=", f.K.cy);
+    Impl& m = *impl_;
+    std::lock_guard<std::mutex> lock(m.mutex);
+    if (m.options.threads > 0) set_num_threads(m.options.threads);
+    const size_t npix = size_t(f.width) * size_t(f.height);
+    const float* depth = f.depth_mm;
+    if (f.depth_u16) {
+        m.depth_mm.resize(npix);
+        for (size_t i = 0; i < npix; ++i)
+            m.depth_mm[i] = float(double(f.depth_u16[i]) * f.depth_scale);
+        depth = m.depth_mm.data();
+    }
+    geom::Intrinsics K;
+    K.fx = f.K.fx, K.fy = f.K.fy, K.cx = f.K.cx, K.cy = f.K.cy;
+    K.width = f.width, K.height = f.height;
+
+    std::vector<ObjectPose> out;
+    out.reserve(boxes.size());
+    for (const ObjectBox& b : boxes) {
+        const auto t0 = Clock::now();
+        ObjectPose p;
+        p.obj_id = b.obj_id;
+        p.score = b.score;
+        const auto cls = m.model.class_of.find(b.obj_id);
+        if (cls == m.model.class_of.end()) {
+            p.status = PoseStatus::unknown_object;
+            out.push_back(p);
+            continue;
+        }
+        const geom::Box2i box = geom::clip_box({b.x, b.y, b.w, b.h}, f.width, f.height);
+        if (box.empty()) {
+            p.status = PoseStatus::box_outside_image;
+            out.push_back(p);
+            continue;
+        }
+        Eigen::Vector3d centre;
+        if (!geom::box_centre(depth, f.width, f.height, K, box, &centre)) {
+            p.status = PoseStatus::no_depth;
+            p.timings.crop_ms = p.timings.total_ms = ms_since(t0);
+            out.push_back(p);
+            continue;
+        }
+        const geom::Points pts = geom::depth_to_points(depth, f.width, f.height, K, box);
+        const double radius = m.model.radius_scale * m.model.objects.at(b.obj_id).diameter;
+        const std::vector<int> keep = geom::crop_indices(m.model.crop, pts, centre, radius);
+        geom::Points crop(int64_t(keep.size()), 3);
+        for (size_t i = 0; i < keep.size(); ++i) crop.row(int64_t(i)) = pts.row(keep[i]);
+        p.num_crop_points = int(keep.size());
+        p.timings.crop_ms = ms_since(t0);
+        const nn::PoseEstimate est =
+            nn::estimate_pose(*m.model.net, crop, cls->second, m.model.keypoints[size_t(cls->second)],
+                              m.object_points, m.crop_points);
+        p.timings.segmentation_ms = est.ms_seg;
+        p.timings.translation_ms = est.ms_t;
+        p.timings.rotation_ms = est.ms_rot;
+        p.num_object_points = est.num_object_points;
+        if (!est.ok) {
+            p.status = est.status == "too few crop points" ? PoseStatus::too_few_points
+                                                           : PoseStatus::too_few_object_points;
+        } else {
+            for (int r = 0; r < 3; ++r) {
+                for (int c = 0; c < 3; ++c) p.R[size_t(r * 3 + c)] = est.pose.R(r, c);
+                p.t[size_t(r)] = est.pose.t[r];
+            }
+        }
+        p.timings.total_ms = ms_since(t0);
+        out.push_back(p);
+    }
+    return out;
+}
+
+}  // namespace g2l

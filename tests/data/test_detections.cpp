@@ -1,0 +1,61 @@
+// SPDX-License-Identifier: MIT
+#include <catch2/catch.hpp>
+
+#include <fstream>
+
+#include "data/detections.h"
+#include "testing.h"
+
+using Catch::Matchers::Contains;
+using g2l::data::parse_bop_detections;
+
+TEST_CASE("BOP detection files: fields, defaults and aliases", "[data]") {
+    const auto d = parse_bop_detections(
+        R"([{"scene_id": 48, "image_id": 1, "category_id": 5, "bbox": [10.5, 20, 30, 40.25],
+             "score": 0.75, "time": 0.031, "segmentation": {"counts": "x", "size": [4, 4]}},
+            {"obj_id": 2, "im_id": 7, "bbox": [0, 0, 0, 0]}])",
+        "mem");
+    REQUIRE(d.size() == 2);
+    CHECK(d[0].scene_id == 48);
+    CHECK(d[0].image_id == 1);
+    CHECK(d[0].obj_id == 5);
+    CHECK(d[0].x == 10.5);
+    CHECK(d[0].h == 40.25);
+    CHECK(d[0].score == 0.75);
+    CHECK(d[0].time == 0.031);
+    CHECK(d[1].obj_id == 2);
+    CHECK(d[1].image_id == 7);
+    CHECK(d[1].scene_id == -1);
+    CHECK(d[1].score == 1.0);
+    CHECK(d[1].time == -1.0);
+    CHECK(parse_bop_detections("[]", "mem").empty());
+}
+
+TEST_CASE("BOP detection files: malformed input names the file, entry and key", "[data]") {
+    auto bad = [](const std::string& text, const std::string& what) {
+        INFO(text);
+        REQUIRE_THROWS_WITH(parse_bop_detections(text, "dets.json"),
+                            Contains("dets.json") && Contains(what));
+    };
+    bad("{", "not valid JSON");
+    bad(R"({"category_id": 1})", "expected a JSON array");
+    bad("[1]", "entry 0: expected an object");
+    bad(R"([{"bbox": [1, 2, 3, 4]}])", "exactly one of 'category_id' and 'obj_id'");
+    bad(R"([{"category_id": 1, "obj_id": 1, "bbox": [1, 2, 3, 4]}])", "exactly one of");
+    bad(R"([{"category_id": 1}])", "no 'bbox'");
+    bad(R"([{"category_id": 1, "bbox": [1, 2, 3]}])", "'bbox' must be [x, y, w, h]");
+    bad(R"([{"category_id": 1, "bbox": [1, 2, 3, "4"]}])", "'bbox' must be a finite number");
+    bad(R"([{"category_id": 1, "bbox": [1, 2, -3, 4]}])", "width and height must be >= 0");
+    bad(R"([{"category_id": 0, "bbox": [1, 2, 3, 4]}])", "'category_id' must be an integer >= 1");
+    bad(R"([{"category_id": 1.5, "bbox": [1, 2, 3, 4]}])", "'category_id' must be an integer");
+    bad(R"([{"category_id": 1, "scene_id": -2, "bbox": [1, 2, 3, 4]}])", "'scene_id' must be an integer >= 0");
+    bad(R"([{"category_id": 1, "bbox": [1, 2, 3, 4], "score": "high"}])", "'score' must be a finite number");
+    bad(R"([{"category_id": 1, "bbox": [1, 2, 3, 4]}, {"category_id": 1, "bbox": [1, 2, 3, 4], "scroe": 1}])",
+        "entry 1: unknown key 'scroe'");
+    bad(R"([{"category_id": 1, "image_id": 1, "im_id": 1, "bbox": [1, 2, 3, 4]}])", "both 'image_id' and 'im_id'");
+    REQUIRE_THROWS_WITH(g2l::data::load_bop_detections("/nonexistent/dets.json"),
+                        Contains("/nonexistent/dets.json") && Contains("cannot open"));
+    const std::string dir = g2l::testing::temp_dir("dets");
+    std::ofstream(dir + "/d.json") << R"([{"category_id": 3, "bbox": [1, 2, 3, 4]}])";
+    CHECK(g2l::data::load_bop_detections(dir + "/d.json").at(0).obj_id == 3);
+}

@@ -1,0 +1,271 @@
+// SPDX-License-Identifier: MIT
+// The embeddable library (infer/include/g2l/pose_estimator.h) on the shipped model and the
+// two real YCB-Video frames of tests/data/ycbv_mini: the same poses as the pipeline's own
+// functions, per-box statuses for boxes that cannot give a pose, clear errors for bad frames
+// and bad model files, and thread safety.
+#include <catch2/catch.hpp>
+
+#include <Eigen/LU>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "core/checkpoint.h"
+#include "data/bop.h"
+#include "g2l/pose_estimator.h"
+#include "geometry/camera.h"
+#include "geometry/crop.h"
+#include "nn/models/g2l_io.h"
+#include "nn/models/g2l_pose.h"
+#include "testing.h"
+
+using Catch::Matchers::Contains;
+
+namespace {
+
+const std::string kModel = std::string(G2L_SOURCE_DIR) + "/models/ycbv_sim2real.g2l";
+
+struct Fixture {
+    g2l::data::Dataset ds;
+    std::vector<uint16_t> depth;
+    int w = 0, h = 0;
+    const g2l::data::Frame* frame = nullptr;
+};
+
+Fixture load_frame(size_t index) {
+    Fixture f;
+    f.ds = g2l::data::open_bop(g2l::testing::fixture_dir() + "/ycbv_mini", "train_real", {});
+    REQUIRE(f.ds.frames().size() > index);
+    f.frame = &f.ds.frames()[index];
+    f.depth = g2l::data::load_depth_png(f.frame->depth_path, &f.w, &f.h);
+    return f;
+}
+
+g2l::FrameView view_of(const Fixture& f) {
+    g2l::FrameView v;
+    v.width = f.w;
+    v.height = f.h;
+    v.depth_u16 = f.depth.data();
+    v.depth_scale = f.frame->depth_scale;
+    v.K = {f.frame->K.fx, f.frame->K.fy, f.frame->K.cx, f.frame->K.cy};
+    return v;
+}
+
+g2l::ObjectBox box_of(const g2l::data::Instance& inst) {
+    return {inst.obj_id, inst.bbox_visib.x, inst.bbox_visib.y, inst.bbox_visib.w,
+            inst.bbox_visib.h, 0.9};
+}
+
+}  // namespace
+
+TEST_CASE("PoseEstimator: the poses of the pipeline's own crop and estimate_pose", "[infer]") {
+    const Fixture f = load_frame(0);
+    g2l::PoseEstimator est(kModel);
+    std::vector<g2l::ObjectBox> boxes;
+    for (const auto& inst : f.frame->instances) boxes.push_back(box_of(inst));
+    REQUIRE(boxes.size() == 2);
+    const auto poses = est.estimate(view_of(f), boxes);
+    REQUIRE(poses.size() == 2);
+
+    // The same steps by hand: box centre from depth, sphere crop, estimate_pose.
+    g2l::nn::LoadedModel m = g2l::nn::load_model(kModel);
+    std::vector<float> mm(f.depth.size());
+    for (size_t i = 0; i < mm.size(); ++i) mm[i] = float(f.depth[i] * f.frame->depth_scale);
+    for (size_t b = 0; b < boxes.size(); ++b) {
+        const auto& inst = f.frame->instances[b];
+        INFO("object " << inst.obj_id);
+        REQUIRE(poses[b].ok());
+        CHECK(poses[b].obj_id == inst.obj_id);
+        CHECK(poses[b].score == 0.9);
+        Eigen::Vector3d c;
+        REQUIRE(g2l::geom::box_centre(mm.data(), f.w, f.h, f.frame->K, inst.bbox_visib, &c));
+        const auto pts = g2l::geom::depth_to_points(mm.data(), f.w, f.h, f.frame->K, inst.bbox_visib);
+        const auto keep = g2l::geom::crop_indices(m.crop, pts, c, m.radius_scale * m.objects.at(inst.obj_id).diameter);
+        g2l::geom::Points crop(int64_t(keep.size()), 3);
+        for (size_t i = 0; i < keep.size(); ++i) crop.row(int64_t(i)) = pts.row(keep[i]);
+        CHECK(poses[b].num_crop_points == int(keep.size()));
+        const int cls = m.class_of.at(inst.obj_id);
+        const auto ref = g2l::nn::estimate_pose(*m.net, crop, cls, m.keypoints[size_t(cls)],
+                                                m.seg_points, m.points);
+        REQUIRE(ref.ok);
+        CHECK(poses[b].num_object_points == ref.num_object_points);
+        for (int r = 0; r < 3; ++r) {
+            CHECK(poses[b].t[size_t(r)] == Approx(ref.pose.t[r]).margin(1e-6));
+            for (int k = 0; k < 3; ++k)
+                CHECK(poses[b].R[size_t(r * 3 + k)] == Approx(ref.pose.R(r, k)).margin(1e-9));
+        }
+        // A rotation, and a translation near the truth (the model learned where objects are).
+        Eigen::Matrix3d R;
+        for (int r = 0; r < 3; ++r)
+            for (int k = 0; k < 3; ++k) R(r, k) = poses[b].R[size_t(r * 3 + k)];
+        CHECK((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < 1e-6);
+        CHECK(R.determinant() == Approx(1.0).margin(1e-6));
+        const Eigen::Vector3d t(poses[b].t[0], poses[b].t[1], poses[b].t[2]);
+        CHECK((t - inst.pose.t).norm() < 40.0);
+        CHECK(poses[b].timings.total_ms >= poses[b].timings.segmentation_ms);
+    }
+    CHECK(est.diameter(8) == Approx(m.objects.at(8).diameter));
+    CHECK(est.object_ids().size() == m.class_of.size());
+    CHECK(est.keypoints(8).size() == 3 * m.keypoints[0].size());
+    CHECK(std::string(g2l::version()).find('.') != std::string::npos);
+}
+
+TEST_CASE("PoseEstimator: boxes without a pose get a status, the rest of the frame goes on",
+          "[infer]") {
+    const Fixture f = load_frame(0);
+    g2l::PoseEstimator est(kModel);
+    const auto& inst = f.frame->instances[0];
+    const g2l::ObjectBox good = box_of(inst);
+    std::vector<g2l::ObjectBox> boxes = {
+        {999, 10, 10, 50, 50, 1},               // unknown object
+        {inst.obj_id, 5000, 10, 50, 50, 1},     // wholly outside
+        {inst.obj_id, -200, -200, 100, 100, 1}, // outside (negative)
+        {inst.obj_id, 10, 10, 0, 30, 1},        // empty
+        good,
+        // partly outside: clipped to the image, same pose as the box cut at the border
+        {inst.obj_id, good.x - 10000, good.y, good.w + 10000, good.h, 1},
+    };
+    const auto p = est.estimate(view_of(f), boxes);
+    REQUIRE(p.size() == boxes.size());
+    CHECK(p[0].status == g2l::PoseStatus::unknown_object);
+    CHECK(std::string(g2l::to_string(p[0].status)) == "unknown object");
+    CHECK(p[1].status == g2l::PoseStatus::box_outside_image);
+    CHECK(p[2].status == g2l::PoseStatus::box_outside_image);
+    CHECK(p[3].status == g2l::PoseStatus::box_outside_image);
+    CHECK(p[4].ok());
+    CHECK(p[5].ok());
+    CHECK_FALSE(p[1].ok());
+
+    // Depth with NaN / inf / 0 only: "no depth"; half of the box invalid: still a pose, the
+    // same as with those pixels at 0.
+    std::vector<float> mm(f.depth.size());
+    for (size_t i = 0; i < mm.size(); ++i) mm[i] = float(f.depth[i] * f.frame->depth_scale);
+    std::vector<float> bad(mm.size(), std::numeric_limits<float>::quiet_NaN());
+    for (size_t i = 0; i < bad.size(); i += 3) bad[i] = std::numeric_limits<float>::infinity();
+    for (size_t i = 1; i < bad.size(); i += 5) bad[i] = 0.f;
+    g2l::FrameView v = view_of(f);
+    v.depth_u16 = nullptr;
+    v.depth_mm = bad.data();
+    const auto none = est.estimate(v, {good});
+    CHECK(none[0].status == g2l::PoseStatus::no_depth);
+    std::vector<float> holes = mm, zeros = mm;
+    for (int y = good.y; y < good.y + good.h; ++y)
+        for (int x = good.x; x < good.x + good.w; x += 2) {
+            holes[size_t(y) * size_t(f.w) + size_t(x)] = (x / 2) % 2 ? NAN : -INFINITY;
+            zeros[size_t(y) * size_t(f.w) + size_t(x)] = 0.f;
+        }
+    v.depth_mm = holes.data();
+    const auto a = est.estimate(v, {good});
+    v.depth_mm = zeros.data();
+    const auto b = est.estimate(v, {good});
+    REQUIRE(a[0].ok());
+    CHECK(a[0].t == b[0].t);
+    CHECK(a[0].R == b[0].R);
+    // Only a few points: too few points, not a crash.
+    std::vector<float> sparse(mm.size(), 0.f);
+    for (int k = 0; k < 5; ++k) {
+        const size_t i = size_t(good.y + good.h / 2) * size_t(f.w) + size_t(good.x + good.w / 2 + k);
+        sparse[i] = mm[i];
+    }
+    v.depth_mm = sparse.data();
+    CHECK(est.estimate(v, {good})[0].status == g2l::PoseStatus::too_few_points);
+    CHECK(est.estimate(v, {}).empty());
+}
+
+TEST_CASE("PoseEstimator: invalid frames throw naming the field", "[infer]") {
+    const Fixture f = load_frame(0);
+    g2l::PoseEstimator est(kModel);
+    const g2l::ObjectBox box = box_of(f.frame->instances[0]);
+    auto expect = [&](g2l::FrameView v, const std::string& what) {
+        INFO(what);
+        REQUIRE_THROWS_WITH(est.estimate(v, {box}), Contains(what));
+    };
+    g2l::FrameView v = view_of(f);
+    v.K.fx = 0;
+    expect(v, "focal lengths must be finite and > 0");
+    v = view_of(f);
+    v.K.fy = std::nan("");
+    expect(v, "fy=nan");
+    v = view_of(f);
+    v.K.cx = INFINITY;
+    expect(v, "principal point");
+    v = view_of(f);
+    v.width = 0;
+    expect(v, "frame size must be positive");
+    v = view_of(f);
+    v.depth_u16 = nullptr;
+    expect(v, "neither given");
+    v = view_of(f);
+    std::vector<float> mm(f.depth.size(), 500.f);
+    v.depth_mm = mm.data();
+    expect(v, "both given");
+    v = view_of(f);
+    v.depth_scale = 0;
+    expect(v, "depth_scale must be finite and > 0");
+    // After the errors the estimator still works.
+    CHECK(est.estimate(view_of(f), {box})[0].ok());
+}
+
+TEST_CASE("PoseEstimator: missing, truncated and incomplete model files", "[infer]") {
+    const std::string dir = g2l::testing::temp_dir("infer_models");
+    REQUIRE_THROWS_WITH(g2l::PoseEstimator(dir + "/nope.g2l"), Contains(dir + "/nope.g2l"));
+    {
+        std::ifstream in(kModel, std::ios::binary);
+        std::vector<char> bytes(4096);
+        in.read(bytes.data(), long(bytes.size()));
+        std::ofstream out(dir + "/cut.g2l", std::ios::binary);
+        out.write(bytes.data(), long(bytes.size()));
+    }
+    REQUIRE_THROWS_WITH(g2l::PoseEstimator(dir + "/cut.g2l"), Contains("cut.g2l"));
+    g2l::EstimatorOptions bad;
+    bad.object_points = 0;
+    REQUIRE_THROWS_WITH(g2l::PoseEstimator(kModel, bad), Contains("object_points"));
+
+    // A file without the diameters (written before they were stored): a clear error, and
+    // EstimatorOptions::models_info supplies them.
+    g2l::Checkpoint ck = g2l::load_checkpoint(kModel);
+    nlohmann::json meta = nlohmann::json::parse(ck.meta_json);
+    REQUIRE(meta.contains("objects"));
+    nlohmann::json info = nlohmann::json::object();
+    for (const auto& o : meta.at("objects"))
+        info[std::to_string(o.at("obj_id").get<int>())] = {
+            {"diameter", o.at("diameter")}, {"min_x", -1}, {"min_y", -1}, {"min_z", -1},
+            {"size_x", 2}, {"size_y", 2}, {"size_z", 2}};
+    meta.erase("objects");
+    std::vector<std::pair<std::string, g2l::Tensor>> tensors(ck.tensors.begin(), ck.tensors.end());
+    g2l::save_checkpoint(dir + "/old.g2l", tensors, meta.dump());
+    REQUIRE_THROWS_WITH(g2l::PoseEstimator(dir + "/old.g2l"), Contains("models_info"));
+    std::ofstream(dir + "/models_info.json") << info.dump();
+    g2l::EstimatorOptions o;
+    o.models_info = dir + "/models_info.json";
+    g2l::PoseEstimator old(dir + "/old.g2l", o);
+    const Fixture f = load_frame(0);
+    g2l::PoseEstimator cur(kModel);
+    const g2l::ObjectBox box = box_of(f.frame->instances[0]);
+    CHECK(old.estimate(view_of(f), {box})[0].t == cur.estimate(view_of(f), {box})[0].t);
+}
+
+TEST_CASE("PoseEstimator: one estimator shared by two threads gives the sequential results",
+          "[infer]") {
+    const Fixture f0 = load_frame(0), f1 = load_frame(1);
+    g2l::PoseEstimator est(kModel);
+    auto boxes_of = [](const Fixture& f) {
+        std::vector<g2l::ObjectBox> b;
+        for (const auto& inst : f.frame->instances) b.push_back(box_of(inst));
+        return b;
+    };
+    const auto s0 = est.estimate(view_of(f0), boxes_of(f0));
+    const auto s1 = est.estimate(view_of(f1), boxes_of(f1));
+    std::vector<g2l::ObjectPose> p0, p1;
+    std::thread a([&] { for (int i = 0; i < 3; ++i) p0 = est.estimate(view_of(f0), boxes_of(f0)); });
+    std::thread b([&] { for (int i = 0; i < 3; ++i) p1 = est.estimate(view_of(f1), boxes_of(f1)); });
+    a.join();
+    b.join();
+    REQUIRE(p0.size() == s0.size());
+    REQUIRE(p1.size() == s1.size());
+    for (size_t i = 0; i < s0.size(); ++i) CHECK(p0[i].R == s0[i].R);
+    for (size_t i = 0; i < s1.size(); ++i) CHECK(p1[i].t == s1[i].t);
+}

@@ -8,10 +8,7 @@
 #include "core/error.h"
 
 namespace g2l::geom {
-namespace {
 
-/// R from the 3 x 3 cross-covariance H = sum w (p - p_mean)(q - q_mean)^T. JacobiSVD on a
-/// fixed-size matrix does not allocate. For H = 0 (all points equal) U = V = I and R = I.
 Eigen::Matrix3d rotation_from_covariance(const Eigen::Matrix3d& H) {
     const Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
     const Eigen::Matrix3d& U = svd.matrixU();
@@ -20,6 +17,8 @@ Eigen::Matrix3d rotation_from_covariance(const Eigen::Matrix3d& H) {
     const double d = (V * U.transpose()).determinant() < 0 ? -1.0 : 1.0;
     return V * Eigen::Vector3d(1, 1, d).asDiagonal() * U.transpose();
 }
+
+namespace {
 
 template <class Pts>
 void check_pair(const Pts& P, const Pts& Q, const char* fn) {

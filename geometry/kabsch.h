@@ -21,6 +21,11 @@ using PointsD = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 /// Throws g2l::Error if the row counts differ, N < 3, or a value is not finite (naming the row).
 Eigen::Matrix3d kabsch(const Points& P, const Points& Q);
 
+/// The rotation R minimising sum |R p_c - q_c|^2 from the 3 x 3 cross-covariance
+/// H = sum (p - p_mean)(q - q_mean)^T (what every kabsch() here ends with): SVD with the
+/// reflection fix. Allocation-free. H = 0 gives the identity.
+Eigen::Matrix3d rotation_from_covariance(const Eigen::Matrix3d& H);
+
 /// Weighted Kabsch: minimises sum_i w_i |R p_i + t - q_i|^2. weights: N values, finite, >= 0,
 /// with a positive sum. Throws like kabsch() and for bad weights (naming the index and value).
 Eigen::Matrix3d kabsch(const Points& P, const Points& Q, const std::vector<double>& weights);

@@ -13,6 +13,7 @@
 #include "geometry/crop.h"
 #include "geometry/model_info.h"
 #include "nn/models/g2l_io.h"
+#include "nn/models/g2l_engine.h"
 #include "nn/models/g2l_pose.h"
 
 #ifndef G2L_VERSION_STRING
@@ -47,8 +48,14 @@ struct PoseEstimator::Impl {
     nn::LoadedModel model;
     EstimatorOptions options;
     int crop_points = 0, object_points = 1;
+    std::unique_ptr<nn::PoseEngine> engine;  // the compiled networks (fast path)
     std::mutex mutex;
-    std::vector<float> depth_mm;  // the frame's depth in mm (reused between frames)
+    // Per-frame buffers, reused between frames.
+    std::vector<float> depth_mm;  // the frame's depth in mm
+    std::vector<geom::Points> crops;
+    std::vector<nn::PoseQuery> queries;
+    std::vector<size_t> query_box;  // box index of each query
+    std::vector<nn::PoseEstimate> results;
 };
 
 PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptions& options)
@@ -62,6 +69,7 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
     G2L_CHECK(options.object_points == -1 || options.object_points >= 1,
               "PoseEstimator: object_points must be -1 or >= 1, got ", options.object_points);
     m.model = nn::load_model(model_path);
+    m.engine = std::make_unique<nn::PoseEngine>(*m.model.net);
     m.crop_points = options.crop_points >= 0 ? options.crop_points : m.model.points;
     m.object_points = options.object_points >= 1 ? options.object_points : m.model.seg_points;
     if (!options.models_info.empty()) {
@@ -138,42 +146,49 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
     K.fx = f.K.fx, K.fy = f.K.fy, K.cx = f.K.cx, K.cy = f.K.cy;
     K.width = f.width, K.height = f.height;
 
-    std::vector<ObjectPose> out;
-    out.reserve(boxes.size());
-    for (const ObjectBox& b : boxes) {
+    // 1. The crop of every box (geometry/crop.h, the step training samples use too).
+    std::vector<ObjectPose> out(boxes.size());
+    if (m.crops.size() < boxes.size()) m.crops.resize(boxes.size());
+    m.queries.clear();
+    m.query_box.clear();
+    for (size_t i = 0; i < boxes.size(); ++i) {
+        const ObjectBox& b = boxes[i];
         const auto t0 = Clock::now();
-        ObjectPose p;
+        ObjectPose& p = out[i];
         p.obj_id = b.obj_id;
         p.score = b.score;
         const auto cls = m.model.class_of.find(b.obj_id);
         if (cls == m.model.class_of.end()) {
             p.status = PoseStatus::unknown_object;
-            out.push_back(p);
             continue;
         }
         const geom::Box2i box = geom::clip_box({b.x, b.y, b.w, b.h}, f.width, f.height);
         if (box.empty()) {
             p.status = PoseStatus::box_outside_image;
-            out.push_back(p);
             continue;
         }
         Eigen::Vector3d centre;
         if (!geom::box_centre(depth, f.width, f.height, K, box, &centre)) {
             p.status = PoseStatus::no_depth;
             p.timings.crop_ms = p.timings.total_ms = ms_since(t0);
-            out.push_back(p);
             continue;
         }
         const geom::Points pts = geom::depth_to_points(depth, f.width, f.height, K, box);
         const double radius = m.model.radius_scale * m.model.objects.at(b.obj_id).diameter;
         const std::vector<int> keep = geom::crop_indices(m.model.crop, pts, centre, radius);
-        geom::Points crop(int64_t(keep.size()), 3);
-        for (size_t i = 0; i < keep.size(); ++i) crop.row(int64_t(i)) = pts.row(keep[i]);
+        geom::Points& crop = m.crops[i];
+        crop.resize(int64_t(keep.size()), 3);
+        for (size_t k = 0; k < keep.size(); ++k) crop.row(int64_t(k)) = pts.row(keep[k]);
         p.num_crop_points = int(keep.size());
         p.timings.crop_ms = ms_since(t0);
-        const nn::PoseEstimate est =
-            nn::estimate_pose(*m.model.net, crop, cls->second, m.model.keypoints[size_t(cls->second)],
-                              m.object_points, m.crop_points);
+        m.queries.push_back({&crop, cls->second, &m.model.keypoints[size_t(cls->second)]});
+        m.query_box.push_back(i);
+    }
+    // 2. The networks for all boxes of the frame at once (nn::PoseEngine).
+    if (!m.queries.empty()) m.engine->estimate(m.queries, m.object_points, m.crop_points, &m.results);
+    for (size_t q = 0; q < m.queries.size(); ++q) {
+        const nn::PoseEstimate& est = m.results[q];
+        ObjectPose& p = out[m.query_box[q]];
         p.timings.segmentation_ms = est.ms_seg;
         p.timings.translation_ms = est.ms_t;
         p.timings.rotation_ms = est.ms_rot;
@@ -187,8 +202,7 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
                 p.t[size_t(r)] = est.pose.t[r];
             }
         }
-        p.timings.total_ms = ms_since(t0);
-        out.push_back(p);
+        p.timings.total_ms = p.timings.crop_ms + est.ms_seg + est.ms_t + est.ms_rot;
     }
     return out;
 }

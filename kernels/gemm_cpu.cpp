@@ -41,7 +41,22 @@ void gemm_tile(bool trans_a, bool trans_b, int64_t i0, int64_t m, int64_t j0, in
 // would change with OMP_NUM_THREADS. We keep Eigen single-threaded and split C into tiles
 // whose size depends only on the shape; every tile is computed the same way by whichever
 // thread takes it, so results are bitwise identical for any thread count.
-constexpr int64_t kTileM = 512, kTileN = 512;
+// Tiles start at 512 x 512; a product with fewer than 8 tiles (a batch-1 layer: [64..1024] x
+// [512..1500] points) has its tile width and then height halved, down to 128 x 64, so that
+// both cores get work. The tile shape is a function of (M, N) only.
+constexpr int64_t kTileM = 512, kTileN = 512, kMinTileM = 64, kMinTileN = 128, kWantTiles = 8;
+
+void tile_shape(int64_t M, int64_t N, int64_t* tm, int64_t* tn) {
+    *tm = kTileM, *tn = kTileN;
+    auto tiles = [&] { return ((M + *tm - 1) / *tm) * ((N + *tn - 1) / *tn); };
+    while (tiles() < kWantTiles) {
+        if (*tn > kMinTileN && *tn >= N / 2) *tn /= 2;
+        else if (*tm > kMinTileM && *tm >= M / 2) *tm /= 2;
+        else if (*tn > kMinTileN) *tn /= 2;
+        else if (*tm > kMinTileM) *tm /= 2;
+        else break;
+    }
+}
 
 template <class T>
 void gemm_cpu(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, T alpha, const T* A,
@@ -52,14 +67,16 @@ void gemm_cpu(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, T alp
     if (beta == T(0)) c.setZero();
     else if (beta != T(1)) c *= beta;
     if (M == 0 || N == 0 || K == 0) return;
-    const int64_t tm = (M + kTileM - 1) / kTileM, tn = (N + kTileN - 1) / kTileN;
+    int64_t sm = kTileM, sn = kTileN;
+    if (M * N * K > (int64_t(1) << 20)) tile_shape(M, N, &sm, &sn);
+    const int64_t tm = (M + sm - 1) / sm, tn = (N + sn - 1) / sn;
     const int64_t tiles = tm * tn;
     const bool parallel = tiles > 1 && M * N * K > (int64_t(1) << 20);
 #pragma omp parallel for schedule(dynamic) if (parallel)
     for (int64_t t = 0; t < tiles; ++t) {
-        const int64_t i0 = (t / tn) * kTileM, j0 = (t % tn) * kTileN;
-        gemm_tile<T>(trans_a, trans_b, i0, std::min(kTileM, M - i0), j0,
-                     std::min(kTileN, N - j0), K, alpha, A, lda, B, ldb, C, ldc);
+        const int64_t i0 = (t / tn) * sm, j0 = (t % tn) * sn;
+        gemm_tile<T>(trans_a, trans_b, i0, std::min(sm, M - i0), j0, std::min(sn, N - j0), K,
+                     alpha, A, lda, B, ldb, C, ldc);
     }
 }
 

@@ -1,6 +1,12 @@
 // SPDX-License-Identifier: MIT
 #include "train/bench.h"
 
+#include <sys/resource.h>
+
+#include <cmath>
+#include "nn/models/g2l_engine.h"
+#include "nn/models/g2l_pose.h"
+
 #include <algorithm>
 #include <chrono>
 
@@ -159,6 +165,64 @@ std::vector<BenchFigure> bench_training(int reps, double width, int batch, int p
                              " -> " + std::to_string(seg_points) + " points)";
     return {{"train_samples_per_s", batch / t, "samples/s", what},
             {"train_step_ms", t * 1e3, "ms", what}};
+}
+
+std::vector<BenchFigure> bench_pose(const std::string& prefix, int reps, double width,
+                                    int crop_points, int object_points, bool engine) {
+    G2L_CHECK(reps >= 1 && crop_points >= 1 && object_points >= 1,
+              "bench_pose: reps, crop_points and object_points must be >= 1");
+    nn::G2LConfig mc;
+    mc.num_classes = 21;
+    mc.width = width;
+    mc.rot_unit = "kp_rms";
+    nn::G2LNet net(mc);
+    for (auto& [name, t] : net.named_parameters())
+        if (name == "seg.out.bias") t.data<float>()[0] = -10.f, t.data<float>()[1] = 10.f;
+    net.eval();
+    Rng rng(17);
+    geom::Points crop(20000, 3);
+    for (int64_t i = 0; i < crop.rows(); ++i)
+        crop.row(i) = Eigen::RowVector3f(float(rng.uniform(-150, 150)), float(rng.uniform(-150, 150)),
+                                         float(800 + rng.uniform(-150, 150)));
+    std::vector<Eigen::Vector3f> kp;
+    for (int i = 0; i < 8; ++i)
+        kp.emplace_back(float((i & 1) ? 40 : -40), float((i & 2) ? 30 : -30), float((i & 4) ? 50 : -50));
+    std::vector<double> ms, st[3];
+    nn::PoseEngine eng(net);
+    std::vector<nn::PoseQuery> q = {{&crop, 3, &kp}};
+    std::vector<nn::PoseEstimate> res;
+    for (int r = 0; r < reps + 3; ++r) {
+        const auto t0 = std::chrono::steady_clock::now();
+        if (engine) eng.estimate(q, object_points, crop_points, &res);
+        const nn::PoseEstimate e =
+            engine ? res[0] : nn::estimate_pose(net, crop, 3, kp, object_points, crop_points);
+        const double dt =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        G2L_CHECK(e.ok && e.num_object_points == crop_points, "bench_pose: the pipeline did not run "
+                  "at full size (", e.status, ", ", e.num_object_points, " object points)");
+        if (r >= 3) {
+            ms.push_back(dt);
+            st[0].push_back(e.ms_seg), st[1].push_back(e.ms_t), st[2].push_back(e.ms_rot);
+        }
+    }
+    for (auto& v : st) std::sort(v.begin(), v.end());
+    std::sort(ms.begin(), ms.end());
+    const double med = ms[ms.size() / 2];
+    const double p90 = ms[std::min(ms.size() - 1, size_t(std::ceil(0.9 * double(ms.size()))) - 1)];
+    const std::string what = std::string(engine ? "PoseEngine" : "eval-mode graph") + ", batch-1 pose, width " + std::to_string(width).substr(0, 4) + ", " +
+                             std::to_string(crop_points) + " -> " + std::to_string(object_points) +
+                             " points, " + std::to_string(reps) + " runs";
+    return {{prefix, med, "ms", what}, {prefix + "_p90", p90, "ms", what},
+            {prefix + "_min", ms.front(), "ms", what},
+            {prefix + "_seg", st[0][st[0].size() / 2], "ms", "segmentation stage (median)"},
+            {prefix + "_t", st[1][st[1].size() / 2], "ms", "translation stage (median)"},
+            {prefix + "_rot", st[2][st[2].size() / 2], "ms", "rotation stage: blocks A, B, C + Kabsch (median)"}};
+}
+
+double peak_rss_mb() {
+    struct rusage u;
+    getrusage(RUSAGE_SELF, &u);
+    return double(u.ru_maxrss) / 1024.0;  // Linux: kilobytes
 }
 
 }  // namespace g2l::train

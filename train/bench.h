@@ -29,4 +29,17 @@ std::vector<BenchFigure> bench_engine(int reps, bool quick);
 std::vector<BenchFigure> bench_training(int reps, double width, int batch, int points,
                                         int seg_points);
 
+/// Batch-1 pose estimation (nn::estimate_pose, eval mode, no graph) on a synthetic crop of
+/// 20,000 points: the seg net sees `crop_points`, the T-net and rotation blocks `object_points`
+/// (the seg net's output bias is set so that every point is "object", so every stage runs at
+/// its full size). Figures "<prefix>" (median ms), "<prefix>_p90" and "<prefix>_min" over `reps`
+/// runs after 3 warm-up runs; `width` scales the networks (1 = paper).
+/// engine = true: through nn::PoseEngine (the inference library's path); false: the autograd
+/// graph in eval mode (nn::estimate_pose), for comparison.
+std::vector<BenchFigure> bench_pose(const std::string& prefix, int reps, double width,
+                                    int crop_points, int object_points, bool engine = true);
+
+/// Peak resident set size of this process so far (MB; getrusage).
+double peak_rss_mb();
+
 }  // namespace g2l::train

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // g2l_bench: prints the engine's speed on G2L-Net's shapes; --json prints one JSON object.
 #include <CLI/CLI.hpp>
+#include <tuple>
 
 #include "core/cli.h"
 #include <cstdio>
@@ -27,18 +28,37 @@ int main(int argc, char** argv) {
         ->check(CLI::Range(0, 1000));
     app.add_option("--width", width, "G2L-Net width multiplier for the training figure")
         ->check(CLI::Range(0.01, 4.0));
+    int pose_reps = 21;
+    bool pose_only = false;
+    app.add_option("--pose-reps", pose_reps, "timed batch-1 pose estimations per setting (0 = skip)")
+        ->check(g2l::cli::at_least(0));
+    app.add_flag("--pose-only", pose_only, "only the batch-1 pose figures (and peak RSS)");
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_bench"); rc >= 0) return rc;
     try {
         if (threads > 0) g2l::set_num_threads(threads);
-        auto figs = g2l::train::bench_engine(reps, quick);
-        if (train_reps > 0) {
+        auto figs = pose_only ? std::vector<g2l::train::BenchFigure>{}
+                              : g2l::train::bench_engine(reps, quick);
+        if (pose_reps > 0) {
+            // The settings: paper widths, 1500 -> 1000 points ("paper") and
+            // 1024 -> 512 ("fast"), batch 1.
+            const int pr = quick ? 2 : pose_reps;
+            for (const auto& [name, cp, op] : {std::tuple<const char*, int, int>{"pose_ms_paper", 1500, 1000},
+                                               {"pose_ms_fast", 1024, 512}}) {
+                const auto pf = g2l::train::bench_pose(name, pr, 1.0, cp, op, true);
+                figs.insert(figs.end(), pf.begin(), pf.end());
+                const auto pg = g2l::train::bench_pose(std::string("graph_") + name, pr, 1.0, cp, op, false);
+                figs.insert(figs.end(), pg.begin(), pg.end());
+            }
+        }
+        if (train_reps > 0 && !pose_only) {
             // The setting: paper architecture, batch 8, 1500 -> 1000 points.
             const auto tf = quick ? g2l::train::bench_training(1, width, 2, 300, 200)
                                   : g2l::train::bench_training(train_reps, width, 8, 1500, 1000);
             figs.insert(figs.end(), tf.begin(), tf.end());
         }
+        figs.push_back({"peak_rss_mb", g2l::train::peak_rss_mb(), "MB", "peak resident set size of this run"});
         if (json) {
             nlohmann::json j;
             j["threads"] = g2l::num_threads();

@@ -26,16 +26,21 @@ Tensor to_input(const geom::Points& pts, const std::vector<int>& idx, const Eige
 
 std::vector<int> even_sample(int size, int n) {
     std::vector<int> out;
-    if (size <= 0 || n <= 0) return out;
-    out.reserve(size_t(n));
-    if (size >= n) {
-        for (int i = 0; i < n; ++i) out.push_back(int(int64_t(i) * size / n));
-    } else {
-        for (int i = 0; i < size; ++i) out.push_back(i);
-        const int extra = n - size;
-        for (int i = 0; i < extra; ++i) out.push_back(int(int64_t(i) * size / extra));
-    }
+    even_sample_into(size, n, &out);
     return out;
+}
+
+void even_sample_into(int size, int n, std::vector<int>* out) {
+    out->clear();
+    if (size <= 0 || n <= 0) return;
+    out->reserve(size_t(n));
+    if (size >= n) {
+        for (int i = 0; i < n; ++i) out->push_back(int(int64_t(i) * size / n));
+    } else {
+        for (int i = 0; i < size; ++i) out->push_back(i);
+        const int extra = n - size;
+        for (int i = 0; i < extra; ++i) out->push_back(int(int64_t(i) * size / extra));
+    }
 }
 
 PoseEstimate estimate_pose(G2LNet& net, const geom::Points& pts, int class_index,

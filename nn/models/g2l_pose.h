@@ -39,5 +39,7 @@ PoseEstimate estimate_pose(G2LNet& net, const geom::Points& crop_points, int cla
 /// evenly spread repeats (the deterministic counterpart of training's sampling). Empty when
 /// size == 0 or n <= 0.
 std::vector<int> even_sample(int size, int n);
+/// even_sample into *out (its capacity is reused: no allocation once it is large enough).
+void even_sample_into(int size, int n, std::vector<int>* out);
 
 }  // namespace g2l::nn

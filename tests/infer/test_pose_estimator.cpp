@@ -61,7 +61,8 @@ g2l::ObjectBox box_of(const g2l::data::Instance& inst) {
 
 }  // namespace
 
-TEST_CASE("PoseEstimator: the poses of the pipeline's own crop and estimate_pose", "[infer]") {
+TEST_CASE("PoseEstimator: the poses of the pipeline's own crop and estimate_pose (eval graph)",
+          "[infer]") {
     const Fixture f = load_frame(0);
     g2l::PoseEstimator est(kModel);
     std::vector<g2l::ObjectBox> boxes;
@@ -93,9 +94,11 @@ TEST_CASE("PoseEstimator: the poses of the pipeline's own crop and estimate_pose
         REQUIRE(ref.ok);
         CHECK(poses[b].num_object_points == ref.num_object_points);
         for (int r = 0; r < 3; ++r) {
-            CHECK(poses[b].t[size_t(r)] == Approx(ref.pose.t[r]).margin(1e-6));
+            // The library runs the compiled networks (nn::PoseEngine): float rounding apart,
+            // the graph's pose.
+            CHECK(poses[b].t[size_t(r)] == Approx(ref.pose.t[r]).epsilon(1e-4).margin(1e-3));
             for (int k = 0; k < 3; ++k)
-                CHECK(poses[b].R[size_t(r * 3 + k)] == Approx(ref.pose.R(r, k)).margin(1e-9));
+                CHECK(poses[b].R[size_t(r * 3 + k)] == Approx(ref.pose.R(r, k)).margin(2e-4));
         }
         // A rotation, and a translation near the truth (the model learned where objects are).
         Eigen::Matrix3d R;

@@ -77,7 +77,8 @@ enum class PoseStatus {
 /// "too few object points".
 G2L_API const char* to_string(PoseStatus status);
 
-/// Wall time of the stages of one box, in milliseconds.
+/// Wall time of the stages of one box, in milliseconds. The boxes of one frame run through the
+/// networks as one batch; each box reports the batch's stage times divided by its size.
 struct PoseTimings {
     double crop_ms = 0;         ///< box centre, back-projection and 3D crop
     double segmentation_ms = 0;

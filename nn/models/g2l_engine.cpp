@@ -1,0 +1,611 @@
+// SPDX-License-Identifier: MIT
+#include "nn/models/g2l_engine.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <string>
+
+#include "core/error.h"
+#include "geometry/kabsch.h"
+#include "kernels/gemm.h"
+#include "nn/modules/layers.h"
+
+namespace g2l::nn {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using MatD = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using VecD = Eigen::VectorXd;
+using MatF = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+double ms_since(Clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+// A folded affine layer: y = W x + b, then ReLU if `relu`. W is [cout, cin] row-major.
+struct Affine {
+    int64_t cout = 0, cin = 0;
+    std::vector<float> w, b;
+    bool relu = false;
+};
+
+Affine to_affine(const MatD& W, const VecD& b, bool relu) {
+    Affine a;
+    a.cout = W.rows();
+    a.cin = W.cols();
+    a.w.resize(size_t(W.size()));
+    for (int64_t r = 0; r < W.rows(); ++r)
+        for (int64_t c = 0; c < W.cols(); ++c) a.w[size_t(r * W.cols() + c)] = float(W(r, c));
+    a.b.resize(size_t(b.size()));
+    for (int64_t r = 0; r < b.size(); ++r) a.b[size_t(r)] = float(b[r]);
+    a.relu = relu;
+    return a;
+}
+
+// The state dict of the net, read as double matrices / vectors.
+struct Dict {
+    std::map<std::string, Tensor> sd;
+    const Tensor& at(const std::string& name) const {
+        const auto it = sd.find(name);
+        G2L_CHECK(it != sd.end(), "PoseEngine: the network has no tensor '", name, "'");
+        return it->second;
+    }
+    bool has(const std::string& name) const { return sd.count(name) > 0; }
+    MatD mat(const std::string& name) const {
+        const Tensor& t = at(name);
+        G2L_CHECK(t.dim() == 2, "PoseEngine: '", name, "' is ", t.desc(), ", expected 2-D");
+        const std::vector<float> v = t.to(DType::F32).to_vector<float>();
+        MatD m(t.size(0), t.size(1));
+        for (int64_t r = 0; r < m.rows(); ++r)
+            for (int64_t c = 0; c < m.cols(); ++c) m(r, c) = v[size_t(r * m.cols() + c)];
+        return m;
+    }
+    VecD vec(const std::string& name) const {
+        const Tensor& t = at(name);
+        const std::vector<float> v = t.to(DType::F32).to_vector<float>();
+        VecD out(int64_t(v.size()));
+        for (size_t i = 0; i < v.size(); ++i) out[int64_t(i)] = v[i];
+        return out;
+    }
+    // weight and bias of a conv / linear layer ("<prefix>.weight", "<prefix>.bias" or zeros).
+    void layer(const std::string& prefix, MatD* W, VecD* b) const {
+        *W = mat(prefix + ".weight");
+        *b = has(prefix + ".bias") ? vec(prefix + ".bias") : VecD::Zero(W->rows());
+    }
+    // Folds the eval-mode BatchNorm `bn` into W, b: s = gamma / sqrt(var + eps),
+    // W <- diag(s) W, b <- s (b - mean) + beta.
+    void fold_bn(const std::string& bn, MatD* W, VecD* b) const {
+        const VecD gamma = vec(bn + ".weight"), beta = vec(bn + ".bias");
+        const VecD mean = vec(bn + ".running_mean"), var = vec(bn + ".running_var");
+        G2L_CHECK(gamma.size() == W->rows(), "PoseEngine: '", bn, "' has ", gamma.size(),
+                  " channels for a layer of ", W->rows());
+        for (int64_t r = 0; r < W->rows(); ++r) {
+            const double s = gamma[r] / std::sqrt(var[r] + 1e-5);
+            W->row(r) *= s;
+            (*b)[r] = s * ((*b)[r] - mean[r]) + beta[r];
+        }
+    }
+    // conv/fc <prefix>.<layer>{i} with its BN <prefix>.bn{i}.
+    Affine folded(const std::string& prefix, const std::string& layer, int i, bool relu) const {
+        MatD W;
+        VecD b;
+        const std::string k = std::to_string(i);
+        this->layer(prefix + "." + layer + k, &W, &b);
+        fold_bn(prefix + ".bn" + k, &W, &b);
+        return to_affine(W, b, relu);
+    }
+};
+
+// PointNet backbone: conv1..4 (+BN, ReLU) and conv5 (+BN) kept in double for fusing into the
+// heads that read pf.
+struct Backbone {
+    Affine l[5];
+    MatD W5;
+    VecD b5;
+    int64_t c1 = 0, c2 = 0, c5 = 0;
+};
+
+Backbone load_backbone(const Dict& d, const std::string& prefix) {
+    Backbone bb;
+    for (int i = 1; i <= 4; ++i) bb.l[i - 1] = d.folded(prefix, "conv", i, true);
+    d.layer(prefix + ".conv5", &bb.W5, &bb.b5);
+    d.fold_bn(prefix + ".bn5", &bb.W5, &bb.b5);
+    bb.l[4] = to_affine(bb.W5, bb.b5, false);
+    bb.c1 = bb.l[1].cout;
+    bb.c2 = bb.l[3].cout;
+    bb.c5 = bb.l[4].cout;
+    return bb;
+}
+
+// A head over [prefix (P channels), x1, x2, pf] per point and [g, onehot] per object. The
+// first layer keeps [W_P | W_x1 | W_x2 + W_pf W5] for the points (`point`) and W_g, W_onehot
+// for the per-object bias  b' + W_pf b5 + W_g g + W_onehot[:, class].
+struct Head {
+    Affine point;             // cin = P + c1 + c2
+    std::vector<float> wg;    // [cout, c5]
+    std::vector<float> wc;    // [cout, C] (column-major by class would be nicer; small anyway)
+    int64_t c5 = 0, C = 0;
+    std::vector<Affine> rest;
+};
+
+Head load_head(const Dict& d, const std::string& prefix, int64_t P, const Backbone& bb,
+               int64_t num_classes, int layers, bool relu_last) {
+    MatD W;
+    VecD b;
+    d.layer(prefix + ".conv1", &W, &b);
+    d.fold_bn(prefix + ".bn1", &W, &b);
+    const int64_t c1 = bb.c1, c2 = bb.c2, c5 = bb.c5;
+    G2L_CHECK(W.cols() == P + c1 + c2 + c5 + c5 + num_classes, "PoseEngine: '", prefix,
+              ".conv1' has ", W.cols(), " input channels, expected ", P + c1 + c2 + 2 * c5 + num_classes);
+    const MatD Wpf = W.middleCols(P + c1 + c2, c5);
+    MatD Wp(W.rows(), P + c1 + c2);
+    Wp.leftCols(P + c1) = W.leftCols(P + c1);
+    Wp.rightCols(c2) = W.middleCols(P + c1, c2) + Wpf * bb.W5;
+    const VecD bias = b + Wpf * bb.b5;
+    Head h;
+    h.point = to_affine(Wp, bias, layers > 1 || relu_last);
+    const MatD Wg = W.middleCols(P + c1 + c2 + c5, c5), Wc = W.rightCols(num_classes);
+    h.wg.assign(size_t(Wg.size()), 0.f);
+    for (int64_t r = 0; r < Wg.rows(); ++r)
+        for (int64_t c = 0; c < c5; ++c) h.wg[size_t(r * c5 + c)] = float(Wg(r, c));
+    h.wc.assign(size_t(Wc.size()), 0.f);
+    for (int64_t r = 0; r < Wc.rows(); ++r)
+        for (int64_t c = 0; c < num_classes; ++c) h.wc[size_t(r * num_classes + c)] = float(Wc(r, c));
+    h.c5 = c5;
+    h.C = num_classes;
+    for (int i = 2; i <= layers; ++i)
+        h.rest.push_back(d.folded(prefix, "conv", i, i < layers || relu_last));
+    return h;
+}
+
+Affine load_plain(const Dict& d, const std::string& prefix, bool relu) {
+    MatD W;
+    VecD b;
+    d.layer(prefix, &W, &b);
+    return to_affine(W, b, relu);
+}
+
+void grow(std::vector<float>* v, size_t n) {
+    if (v->size() < n) v->resize(n);
+}
+
+}  // namespace
+
+struct PoseEngine::Impl {
+    G2LConfig cfg;
+    int64_t K3 = 0;  // 3K
+    Backbone seg_bb, feat_bb;  // feat_bb: block A's backbone (or block B's own without A)
+    Head seg_head, evf_head, rot_head, rre_head;
+    Affine seg_out, evf_out, rot_out, rre_out;
+    Affine t_mlp[3], t_fc[2], t_out;
+    Affine rot_fc[3];
+    bool evf = true, rre = true;
+
+    // Buffers (grown on demand, never shrunk).
+    std::vector<float> xin, a, feat, pf, h1, h2, small;
+    std::vector<float> g, bias, vec_a, vec_b;
+    std::vector<int64_t> start;  // segment starts (objects side by side), size n + 1
+    struct Work {
+        std::vector<int> all, obj, sub;
+        Eigen::Vector3f mean = Eigen::Vector3f::Zero(), T = Eigen::Vector3f::Zero();
+        float scale = 1.f, out_mul = 1.f;
+        bool active = false;
+    };
+    std::vector<Work> work;
+    std::vector<int> active;  // indices of the queries in the current stage
+    std::vector<int> cls_buf, keep;
+
+    // y [cout, N] = A x (ld N) + bias, ReLU. obj_bias: [segments, cout] replacing A.b.
+    void run_points(const Affine& A, const float* x, int64_t N, float* y,
+                    const float* obj_bias) const {
+        kernels::gemm_cpu<float>(false, false, A.cout, N, A.cin, 1.f, A.w.data(), A.cin, x, N, 0.f,
+                                 y, N);
+        const int64_t S = int64_t(start.size()) - 1;
+#pragma omp parallel for schedule(static) if (A.cout * N > 32768)
+        for (int64_t r = 0; r < A.cout; ++r) {
+            float* row = y + r * N;
+            for (int64_t s = 0; s < S; ++s) {
+                const float b = obj_bias ? obj_bias[s * A.cout + r] : A.b[size_t(r)];
+                for (int64_t n = start[size_t(s)]; n < start[size_t(s + 1)]; ++n) {
+                    const float v = row[n] + b;
+                    row[n] = A.relu && v < 0.f ? 0.f : v;
+                }
+            }
+        }
+    }
+
+    // out[s, c] = max over the points of segment s of x[c, :] (x: [C, N]).
+    void max_points(const float* x, int64_t C, int64_t N, float* out) const {
+        const int64_t S = int64_t(start.size()) - 1;
+#pragma omp parallel for schedule(static) if (C * N > 32768)
+        for (int64_t c = 0; c < C; ++c)
+            for (int64_t s = 0; s < S; ++s) {
+                float m = -INFINITY;
+                for (int64_t n = start[size_t(s)]; n < start[size_t(s + 1)]; ++n)
+                    m = std::max(m, x[c * N + n]);
+                out[s * C + c] = m;
+            }
+    }
+
+    // y = A x (+ b, ReLU) for one vector.
+    static void run_vec(const Affine& A, const float* x, float* y) {
+        Eigen::Map<const MatF> W(A.w.data(), A.cout, A.cin);
+        Eigen::Map<const Eigen::VectorXf> xv(x, A.cin);
+        Eigen::Map<Eigen::VectorXf> yv(y, A.cout);
+        yv.noalias() = W * xv;
+        for (int64_t r = 0; r < A.cout; ++r) {
+            const float v = yv[r] + A.b[size_t(r)];
+            yv[r] = A.relu && v < 0.f ? 0.f : v;
+        }
+    }
+
+    // Per-object first-layer biases of `h`: bias[s] = point.b + W_g g[s] + W_c[:, class(s)].
+    void head_bias(const Head& h, const float* g_all, const std::vector<int>& cls) {
+        const int64_t S = int64_t(cls.size()), cout = h.point.cout;
+        grow(&bias, size_t(S * cout));
+        Eigen::Map<const MatF> Wg(h.wg.data(), cout, h.c5);
+        for (int64_t s = 0; s < S; ++s) {
+            Eigen::Map<const Eigen::VectorXf> gv(g_all + s * h.c5, h.c5);
+            Eigen::Map<Eigen::VectorXf> bv(bias.data() + s * cout, cout);
+            bv.noalias() = Wg * gv;
+            for (int64_t r = 0; r < cout; ++r)
+                bv[r] += h.point.b[size_t(r)] + h.wc[size_t(r * h.C + cls[size_t(s)])];
+        }
+    }
+
+    // Backbone over xin [3, N]: x1, x2 into feat rows [P, P + c1 + c2), g (per segment) into
+    // this->g. pf goes through this->pf.
+    void run_backbone(const Backbone& bb, int64_t N, int64_t P) {
+        grow(&a, size_t(std::max(bb.l[0].cout, bb.l[2].cout) * N));
+        grow(&pf, size_t(bb.c5 * N));
+        float* x1 = feat.data() + P * N;
+        float* x2 = x1 + bb.c1 * N;
+        run_points(bb.l[0], xin.data(), N, a.data(), nullptr);
+        run_points(bb.l[1], a.data(), N, x1, nullptr);
+        run_points(bb.l[2], x1, N, a.data(), nullptr);
+        run_points(bb.l[3], a.data(), N, x2, nullptr);
+        run_points(bb.l[4], x2, N, pf.data(), nullptr);
+        grow(&g, size_t((int64_t(start.size()) - 1) * bb.c5));
+        max_points(pf.data(), bb.c5, N, g.data());
+    }
+
+    // A head over feat rows [row0, ...) (cin of its first layer) -> its last layer in *out_buf.
+    const float* run_head(const Head& h, int64_t N, int64_t row0, const std::vector<int>& cls) {
+        head_bias(h, g.data(), cls);
+        int64_t widest = h.point.cout;
+        for (const auto& l : h.rest) widest = std::max(widest, l.cout);
+        grow(&h1, size_t(widest * N));
+        grow(&h2, size_t(widest * N));
+        run_points(h.point, feat.data() + row0 * N, N, h1.data(), bias.data());
+        float* cur = h1.data();
+        float* nxt = h2.data();
+        for (const auto& l : h.rest) {
+            run_points(l, cur, N, nxt, nullptr);
+            std::swap(cur, nxt);
+        }
+        return cur;
+    }
+};
+
+PoseEngine::PoseEngine(const G2LNet& net) : impl_(std::make_unique<Impl>()) {
+    Impl& m = *impl_;
+    m.cfg = net.config();
+    const_cast<G2LNet&>(net).apply([](Module& mod) {
+        if (auto* bn = dynamic_cast<BatchNorm*>(&mod))
+            G2L_CHECK(bn->eps == 1e-5, "PoseEngine: a BatchNorm with eps ", bn->eps,
+                      " (the engine folds eps 1e-5)");
+    });
+    Dict d;
+    d.sd = net.state_dict();
+    const int64_t C = m.cfg.num_classes, K = m.cfg.num_keypoints;
+    m.K3 = 3 * K;
+    m.evf = m.cfg.evf;
+    m.rre = m.cfg.rre;
+    m.seg_bb = load_backbone(d, "seg.backbone");
+    m.seg_head = load_head(d, "seg.head", 0, m.seg_bb, C, 4, true);
+    m.seg_out = load_plain(d, "seg.out", false);
+    for (int i = 0; i < 3; ++i) m.t_mlp[i] = d.folded("tnet.mlp", "conv", i + 1, i < 2);
+    for (int i = 0; i < 2; ++i) m.t_fc[i] = d.folded("tnet.fc", "fc", i + 1, i < 1);
+    m.t_out = load_plain(d, "tnet.out", false);
+    m.feat_bb = load_backbone(d, m.evf ? "evf.backbone" : "rot.backbone");
+    if (m.evf) {
+        m.evf_head = load_head(d, "evf.head", 0, m.feat_bb, C, 4, true);
+        m.evf_out = load_plain(d, "evf.out", false);
+    }
+    m.rot_head = load_head(d, "rot.mlp", m.evf ? m.K3 : 0, m.feat_bb, C, 3, true);
+    for (int i = 0; i < 3; ++i) m.rot_fc[i] = d.folded("rot.fc", "fc", i + 1, true);
+    m.rot_out = load_plain(d, "rot.out", false);
+    if (m.rre) {
+        m.rre_head = load_head(d, "rre.mlp", 0, m.feat_bb, C, 2, false);
+        m.rre_out = load_plain(d, "rre.out", false);
+    }
+}
+
+PoseEngine::~PoseEngine() = default;
+PoseEngine::PoseEngine(PoseEngine&&) noexcept = default;
+PoseEngine& PoseEngine::operator=(PoseEngine&&) noexcept = default;
+
+const G2LConfig& PoseEngine::config() const { return impl_->cfg; }
+
+PoseEstimate PoseEngine::estimate(const geom::Points& crop, int class_index,
+                                  const std::vector<Eigen::Vector3f>& keypoints, int max_points,
+                                  int crop_points) {
+    std::vector<PoseEstimate> out;
+    estimate({PoseQuery{&crop, class_index, &keypoints}}, max_points, crop_points, &out);
+    return out[0];
+}
+
+void PoseEngine::estimate(const std::vector<PoseQuery>& qs, int max_points, int crop_points,
+                          std::vector<PoseEstimate>* out) {
+    Impl& m = *impl_;
+    const G2LConfig& cfg = m.cfg;
+    const int K = cfg.num_keypoints;
+    for (size_t i = 0; i < qs.size(); ++i) {
+        G2L_CHECK(qs[i].crop && qs[i].keypoints, "PoseEngine::estimate: query ", i,
+                  " has a null crop or keypoints");
+        G2L_CHECK(qs[i].class_index >= 0 && qs[i].class_index < cfg.num_classes,
+                  "PoseEngine::estimate: class index ", qs[i].class_index, " outside [0, ",
+                  cfg.num_classes, ")");
+        G2L_CHECK(int(qs[i].keypoints->size()) == K, "PoseEngine::estimate: ",
+                  qs[i].keypoints->size(), " model keypoints, the network predicts ", K);
+    }
+    out->resize(qs.size());
+    for (auto& e : *out) e = PoseEstimate{};
+    if (m.work.size() < qs.size()) m.work.resize(qs.size());
+    const double nq = double(std::max<size_t>(1, qs.size()));
+    std::vector<int>& act = m.active;
+    std::vector<int>& cls_buf = m.cls_buf;
+
+    // Segments of the active queries with sizes n(q).
+    auto set_segments = [&](auto size_of) {
+        m.start.assign(1, 0);
+        for (int q : act) m.start.push_back(m.start.back() + size_of(q));
+        return m.start.back();
+    };
+    auto classes = [&]() -> const std::vector<int>& {
+        cls_buf.clear();
+        for (int q : act) cls_buf.push_back(qs[size_t(q)].class_index);
+        return cls_buf;
+    };
+
+    // ---- 1. segmentation of the crop, centred by the mean of the points it sees ----
+    auto t0 = Clock::now();
+    act.clear();
+    for (size_t i = 0; i < qs.size(); ++i) {
+        Impl::Work& w = m.work[i];
+        const geom::Points& pts = *qs[i].crop;
+        w.active = pts.rows() >= 10;
+        if (!w.active) {
+            (*out)[i].status = "too few crop points";
+            continue;
+        }
+        if (crop_points > 0) {
+            even_sample_into(int(pts.rows()), crop_points, &w.all);
+        } else {
+            w.all.resize(size_t(pts.rows()));
+            for (size_t k = 0; k < w.all.size(); ++k) w.all[k] = int(k);
+        }
+        w.mean.setZero();
+        for (int k : w.all) w.mean += pts.row(k).transpose();
+        w.mean /= float(w.all.size());
+        act.push_back(int(i));
+    }
+    if (!act.empty()) {
+        const int64_t N = set_segments([&](int q) { return int64_t(m.work[size_t(q)].all.size()); });
+        grow(&m.xin, size_t(3 * N));
+        for (size_t s = 0; s < act.size(); ++s) {
+            const Impl::Work& w = m.work[size_t(act[s])];
+            const geom::Points& pts = *qs[size_t(act[s])].crop;
+            for (size_t n = 0; n < w.all.size(); ++n)
+                for (int c = 0; c < 3; ++c)
+                    m.xin[size_t(c * N + m.start[s] + int64_t(n))] = pts(w.all[n], c) - w.mean[c];
+        }
+        grow(&m.feat, size_t((m.K3 + m.seg_bb.c1 + m.seg_bb.c2) * N));
+        m.run_backbone(m.seg_bb, N, 0);
+        const float* h = m.run_head(m.seg_head, N, 0, classes());
+        grow(&m.small, size_t(2 * N));
+        m.run_points(m.seg_out, h, N, m.small.data(), nullptr);
+        for (size_t s = 0; s < act.size(); ++s) {
+            Impl::Work& w = m.work[size_t(act[s])];
+            w.obj.clear();
+            for (size_t n = 0; n < w.all.size(); ++n) {
+                const int64_t col = m.start[s] + int64_t(n);
+                if (m.small[size_t(N + col)] > m.small[size_t(col)]) w.obj.push_back(w.all[n]);
+            }
+        }
+    }
+    const double ms_seg = ms_since(t0) / nq;
+    std::vector<int>& keep = m.keep;
+    keep.clear();
+    for (int q : act) {
+        Impl::Work& w = m.work[size_t(q)];
+        (*out)[size_t(q)].num_object_points = int(w.obj.size());
+        if (w.obj.size() < 10) {
+            (*out)[size_t(q)].status = "too few object points";
+            continue;
+        }
+        if (max_points > 0) {
+            even_sample_into(int(w.obj.size()), max_points, &w.sub);
+            for (int& k : w.sub) k = w.obj[size_t(k)];
+            std::swap(w.obj, w.sub);
+        }
+        keep.push_back(q);
+    }
+    act.swap(keep);
+
+    // ---- 2. translation = mean of the object points + the T-net's residual ----
+    t0 = Clock::now();
+    if (!act.empty()) {
+        const int64_t N = set_segments([&](int q) { return int64_t(m.work[size_t(q)].obj.size()); });
+        grow(&m.xin, size_t(3 * N));
+        for (size_t s = 0; s < act.size(); ++s) {
+            Impl::Work& w = m.work[size_t(act[s])];
+            const geom::Points& pts = *qs[size_t(act[s])].crop;
+            w.mean.setZero();
+            for (int k : w.obj) w.mean += pts.row(k).transpose();
+            w.mean /= float(w.obj.size());
+            for (size_t n = 0; n < w.obj.size(); ++n)
+                for (int c = 0; c < 3; ++c)
+                    m.xin[size_t(c * N + m.start[s] + int64_t(n))] = pts(w.obj[n], c) - w.mean[c];
+        }
+        grow(&m.h1, size_t(m.t_mlp[0].cout * N));
+        grow(&m.h2, size_t(std::max(m.t_mlp[1].cout, m.t_mlp[2].cout) * N));
+        grow(&m.a, size_t(m.t_mlp[2].cout * N));
+        m.run_points(m.t_mlp[0], m.xin.data(), N, m.h1.data(), nullptr);
+        m.run_points(m.t_mlp[1], m.h1.data(), N, m.h2.data(), nullptr);
+        m.run_points(m.t_mlp[2], m.h2.data(), N, m.a.data(), nullptr);
+        const int64_t c3 = m.t_mlp[2].cout;
+        grow(&m.g, size_t(int64_t(act.size()) * c3));
+        m.max_points(m.a.data(), c3, N, m.g.data());
+        grow(&m.vec_a, size_t(c3 + cfg.num_classes + 1024));
+        grow(&m.vec_b, size_t(1024));
+        for (size_t s = 0; s < act.size(); ++s) {
+            Impl::Work& w = m.work[size_t(act[s])];
+            std::copy(m.g.data() + int64_t(s) * c3, m.g.data() + int64_t(s + 1) * c3, m.vec_a.data());
+            std::fill(m.vec_a.data() + c3, m.vec_a.data() + c3 + cfg.num_classes, 0.f);
+            m.vec_a[size_t(c3 + qs[size_t(act[s])].class_index)] = 1.f;
+            Impl::run_vec(m.t_fc[0], m.vec_a.data(), m.vec_b.data());
+            Impl::run_vec(m.t_fc[1], m.vec_b.data(), m.vec_a.data());
+            float res[3];
+            Impl::run_vec(m.t_out, m.vec_a.data(), res);
+            const float o = float(cfg.out_scale_mm);
+            w.T = w.mean + (o == 1.f ? Eigen::Vector3f(res[0], res[1], res[2])
+                                     : Eigen::Vector3f(res[0] * o, res[1] * o, res[2] * o));
+        }
+    }
+    const double ms_t = ms_since(t0) / nq;
+
+    // ---- 3. rotation in the canonical frame (points - T), in units of the object's scale ----
+    t0 = Clock::now();
+    if (!act.empty()) {
+        const int64_t N = set_segments([&](int q) { return int64_t(m.work[size_t(q)].obj.size()); });
+        const bool unit = cfg.rot_unit != "mm";
+        grow(&m.xin, size_t(3 * N));
+        for (size_t s = 0; s < act.size(); ++s) {
+            Impl::Work& w = m.work[size_t(act[s])];
+            const geom::Points& pts = *qs[size_t(act[s])].crop;
+            w.scale = unit ? float(rotation_scale(cfg.rot_unit, *qs[size_t(act[s])].keypoints)) : 1.f;
+            w.out_mul = unit ? w.scale : float(cfg.out_scale_mm);
+            for (size_t n = 0; n < w.obj.size(); ++n)
+                for (int c = 0; c < 3; ++c) {
+                    const float v = pts(w.obj[n], c) - w.T[c];
+                    m.xin[size_t(c * N + m.start[s] + int64_t(n))] = unit ? v / w.scale : v;
+                }
+        }
+        const int64_t P = m.evf ? m.K3 : 0;
+        grow(&m.feat, size_t((P + m.feat_bb.c1 + m.feat_bb.c2) * N));
+        m.run_backbone(m.feat_bb, N, P);
+        const std::vector<int>& cls = classes();
+        if (m.evf) {
+            // Block A: per-point vectors into feat rows [0, 3K) (each object its class's rows).
+            const float* h = m.run_head(m.evf_head, N, P, cls);
+            const bool per_class = m.evf_out.cout != m.K3;
+            for (size_t s = 0; s < act.size(); ++s) {
+                const int64_t r0 = per_class ? int64_t(cls[s]) * m.K3 : 0;
+                const int64_t off = m.start[s], n = m.start[s + 1] - off;
+                kernels::gemm_cpu<float>(false, false, m.K3, n, m.evf_out.cin, 1.f,
+                                         m.evf_out.w.data() + r0 * m.evf_out.cin, m.evf_out.cin,
+                                         h + off, N, 0.f, m.feat.data() + off, N);
+                for (int64_t r = 0; r < m.K3; ++r) {
+                    const float b = m.evf_out.b[size_t(r0 + r)];
+                    float* row = m.feat.data() + r * N + off;
+                    for (int64_t k = 0; k < n; ++k) row[k] += b;
+                }
+            }
+        }
+        // Block C first (it reads feat rows [P, ...) and this->g, which block B's head keeps).
+        grow(&m.vec_a, size_t(std::max<int64_t>(1024, m.rot_head.rest.back().cout)));
+        grow(&m.vec_b, size_t(1024));
+        std::vector<float>& kp_out = m.small;  // [S, 3K] keypoints then [S, 3K] residuals
+        grow(&kp_out, size_t(2 * int64_t(act.size()) * m.K3 + 2 * N));
+        float* kp = kp_out.data();
+        float* resid = kp + int64_t(act.size()) * m.K3;
+        if (m.rre) {
+            const float* h = m.run_head(m.rre_head, N, P, cls);
+            const int64_t c = m.rre_head.rest.back().cout;
+            std::vector<float>& pooled = m.h2.data() == h ? m.h1 : m.h2;
+            grow(&pooled, size_t(int64_t(act.size()) * c));
+            m.max_points(h, c, N, pooled.data());
+            const bool per_class = m.rre_out.cout != m.K3;
+            for (size_t s = 0; s < act.size(); ++s) {
+                const float* v = pooled.data() + int64_t(s) * c;
+                const int64_t r0 = per_class ? int64_t(cls[s]) * m.K3 : 0;
+                Eigen::Map<const MatF> W(m.rre_out.w.data() + r0 * m.rre_out.cin, m.K3, m.rre_out.cin);
+                Eigen::Map<const Eigen::VectorXf> xv(v, c);
+                Eigen::Map<Eigen::VectorXf> yv(resid + int64_t(s) * m.K3, m.K3);
+                yv.noalias() = W * xv;
+                for (int64_t r = 0; r < m.K3; ++r) yv[r] += m.rre_out.b[size_t(r0 + r)];
+            }
+        }
+        {
+            const float* h = m.run_head(m.rot_head, N, 0, cls);
+            const int64_t c = m.rot_head.rest.back().cout;
+            std::vector<float>& pooled = m.h2.data() == h ? m.h1 : m.h2;
+            grow(&pooled, size_t(int64_t(act.size()) * c));
+            m.max_points(h, c, N, pooled.data());
+            const bool per_class = m.rot_out.cout != m.K3;
+            for (size_t s = 0; s < act.size(); ++s) {
+                Impl::run_vec(m.rot_fc[0], pooled.data() + int64_t(s) * c, m.vec_a.data());
+                Impl::run_vec(m.rot_fc[1], m.vec_a.data(), m.vec_b.data());
+                Impl::run_vec(m.rot_fc[2], m.vec_b.data(), m.vec_a.data());
+                const int64_t r0 = per_class ? int64_t(cls[s]) * m.K3 : 0;
+                Eigen::Map<const MatF> W(m.rot_out.w.data() + r0 * m.rot_out.cin, m.K3, m.rot_out.cin);
+                Eigen::Map<const Eigen::VectorXf> xv(m.vec_a.data(), m.rot_out.cin);
+                Eigen::Map<Eigen::VectorXf> yv(kp + int64_t(s) * m.K3, m.K3);
+                yv.noalias() = W * xv;
+                for (int64_t r = 0; r < m.K3; ++r) yv[r] += m.rot_out.b[size_t(r0 + r)];
+            }
+        }
+        // Kabsch on block B's keypoints, corrected by block C's residual and Kabsch again
+        // (as estimate_pose).
+        for (size_t s = 0; s < act.size(); ++s) {
+            const int q = act[s];
+            const Impl::Work& w = m.work[size_t(q)];
+            const auto& mk = *qs[size_t(q)].keypoints;
+            auto kabsch = [&](auto&& q_of) {
+                Eigen::Vector3d pm = Eigen::Vector3d::Zero(), qm = Eigen::Vector3d::Zero();
+                for (int k = 0; k < K; ++k) {
+                    pm += mk[size_t(k)].cast<double>();
+                    qm += q_of(k);
+                }
+                pm /= K;
+                qm /= K;
+                Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+                for (int k = 0; k < K; ++k)
+                    H += (mk[size_t(k)].cast<double>() - pm) * (q_of(k) - qm).transpose();
+                return geom::rotation_from_covariance(H);
+            };
+            const float* kq = kp + int64_t(s) * m.K3;
+            Eigen::Matrix3d R = kabsch([&](int k) {
+                return Eigen::Vector3d(double(kq[3 * k] * w.out_mul), double(kq[3 * k + 1] * w.out_mul),
+                                       double(kq[3 * k + 2] * w.out_mul));
+            });
+            if (m.rre) {
+                const float* rq = resid + int64_t(s) * m.K3;
+                const Eigen::Matrix3d R1 = R;
+                R = kabsch([&](int k) {
+                    const Eigen::Vector3d rp = R1 * mk[size_t(k)].cast<double>();
+                    return Eigen::Vector3d(double(float(rp[0]) + rq[3 * k] * w.out_mul),
+                                           double(float(rp[1]) + rq[3 * k + 1] * w.out_mul),
+                                           double(float(rp[2]) + rq[3 * k + 2] * w.out_mul));
+                });
+            }
+            PoseEstimate& e = (*out)[size_t(q)];
+            e.pose.R = R;
+            e.pose.t = w.T.cast<double>();
+            e.ok = true;
+            e.status = "ok";
+        }
+    }
+    const double ms_rot = ms_since(t0) / nq;
+    for (auto& e : *out) {
+        e.ms_seg = ms_seg;
+        e.ms_t = e.num_object_points >= 10 || e.ok ? ms_t : 0;
+        e.ms_rot = e.ok ? ms_rot : 0;
+    }
+}
+
+}  // namespace g2l::nn

@@ -10,6 +10,7 @@
 
 #include "core/cli.h"
 #include "core/error.h"
+#include "core/json.h"
 #include "data/dataset.h"
 #include "data/detections.h"
 #include "data/draw.h"
@@ -23,14 +24,7 @@ using json = nlohmann::json;
 // depth_scale, ...}), one scene_camera.json entry ({cam_K, depth_scale}), or a whole
 // scene_camera.json (then `image_id` picks the entry).
 void read_camera(const std::string& path, int image_id, g2l::CameraIntrinsics* K, double* scale) {
-    std::ifstream f(path);
-    G2L_CHECK(f.good(), "camera '", path, "': cannot open the file");
-    json j;
-    try {
-        f >> j;
-    } catch (const json::exception& e) {
-        G2L_CHECK(false, "camera '", path, "': not valid JSON: ", e.what());
-    }
+    json j = g2l::parse_json_file(path);
     G2L_CHECK(j.is_object(), "camera '", path, "': expected a JSON object");
     if (!j.contains("cam_K") && !j.contains("fx")) {
         G2L_CHECK(image_id >= 0, "camera '", path, "': neither 'cam_K' nor 'fx' at the top level; "

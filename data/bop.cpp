@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "data/bop.h"
+#include "core/json.h"
 
 #include <Eigen/LU>
 #include <algorithm>
@@ -7,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <unordered_set>
@@ -26,14 +28,11 @@ namespace {
 
 json read_json(const fs::path& path) {
     G2L_CHECK(fs::is_regular_file(path), "BOP file not found: '", path.string(), "'");
-    std::ifstream f(path);
+    std::ifstream f(path, std::ios::binary);
     G2L_CHECK(f.good(), "cannot open '", path.string(), "'");
-    try {
-        return json::parse(f);
-    } catch (const json::exception& e) {
-        G2L_CHECK(false, "malformed JSON in '", path.string(), "': ", e.what());
-    }
-    return {};  // unreachable
+    std::ostringstream ss;
+    ss << f.rdbuf();
+    return parse_json_strict(ss.str(), "malformed JSON in '" + path.string() + "'");
 }
 
 /// A JSON value together with where it came from, so that errors can say so.

@@ -7,18 +7,14 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/json.h"
 
 namespace g2l::data {
 
 using json = nlohmann::json;
 
 std::vector<Detection> parse_bop_detections(const std::string& text, const std::string& what) {
-    json j;
-    try {
-        j = json::parse(text);
-    } catch (const json::exception& e) {
-        G2L_CHECK(false, "detections '", what, "': not valid JSON: ", e.what());
-    }
+    const json j = parse_json_strict(text, "detections '" + what + "'");
     G2L_CHECK(j.is_array(), "detections '", what, "': expected a JSON array of detections, got ",
               j.type_name());
     std::vector<Detection> out;

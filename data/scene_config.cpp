@@ -8,6 +8,7 @@
 
 #include "core/error.h"
 #include "data/scene.h"
+#include "core/json.h"
 
 namespace g2l::data {
 namespace {
@@ -96,12 +97,7 @@ Reader as_rgb(std::array<uint8_t, 3>& dst) {
 }  // namespace
 
 SceneConfig parse_scene_config(const std::string& json_text, const std::string& source) {
-    json j;
-    try {
-        j = json::parse(json_text);
-    } catch (const json::exception& e) {
-        G2L_CHECK(false, source, ": invalid JSON: ", e.what());
-    }
+    const json j = parse_json_strict(json_text, source);
     SceneConfig c;
     SensorNoiseConfig& n = c.noise;
     geom::Intrinsics& K = c.camera;

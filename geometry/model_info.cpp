@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "geometry/model_info.h"
+#include "core/json.h"
 
 #include <nlohmann/json.hpp>
 
@@ -119,14 +120,11 @@ ModelInfo compute_model_info(const Points& vertices) {
 }
 
 std::map<int, ModelInfo> load_models_info_json(const std::string& path) {
-    std::ifstream f(path);
+    std::ifstream f(path, std::ios::binary);
     G2L_CHECK(f.good(), "load_models_info_json: cannot open '", path, "'");
-    nlohmann::json j;
-    try {
-        f >> j;
-    } catch (const nlohmann::json::exception& e) {
-        G2L_CHECK(false, "load_models_info_json: '", path, "' is not valid JSON: ", e.what());
-    }
+    std::ostringstream ss;
+    ss << f.rdbuf();
+    const nlohmann::json j = parse_json_strict(ss.str(), "load_models_info_json: '" + path + "'");
     G2L_CHECK(j.is_object(), "load_models_info_json: '", path,
               "': top level must be an object keyed by object id");
     std::map<int, ModelInfo> out;

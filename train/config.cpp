@@ -2,6 +2,7 @@
 // TrainConfig <-> JSON. One visitor (visit_config) lists every key once; a strict Reader, a
 // Writer and the --set machinery are driven by it, so parse and print cannot drift apart.
 #include "train/config.h"
+#include "core/json.h"
 
 #include <algorithm>
 #include <cmath>
@@ -344,12 +345,7 @@ void visit_config(IO& io, TrainConfig& c) {
 }
 
 json parse_json(const std::string& text, const std::string& source) {
-    try {
-        return json::parse(text);
-    } catch (const json::parse_error& e) {
-        G2L_CHECK(false, source, ": invalid JSON: ", e.what());
-    }
-    return {};
+    return parse_json_strict_ordered(text, source);
 }
 
 TrainConfig read_config(const json& j, const std::string& source) {

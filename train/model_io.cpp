@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/checkpoint.h"
+#include "core/json.h"
 #include "geometry/model_info.h"
 
 namespace g2l::train {
@@ -82,12 +83,7 @@ nn::G2LConfig model_from_json(const json& j) { return nn::g2l_config_from_json(j
 
 // The checkpoint's JSON metadata; throws g2l::Error naming the file when it is not JSON.
 json read_meta(const Checkpoint& ck, const std::string& path) {
-    try {
-        return json::parse(ck.meta_json);
-    } catch (const std::exception& e) {
-        G2L_CHECK(false, "checkpoint '", path, "': metadata is not JSON: ", e.what());
-    }
-    return {};
+    return parse_json_strict(ck.meta_json, "checkpoint '" + path + "': metadata");
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/checkpoint.h"
+#include "core/json.h"
 
 namespace g2l::nn {
 
@@ -44,12 +45,7 @@ const json& key(const json& j, const char* k, const std::string& path) {
 
 LoadedModel load_model(const std::string& path) {
     const Checkpoint ck = load_checkpoint(path);
-    json meta;
-    try {
-        meta = json::parse(ck.meta_json);
-    } catch (const std::exception& e) {
-        G2L_CHECK(false, "checkpoint '", path, "': metadata is not JSON: ", e.what());
-    }
+    const json meta = parse_json_strict(ck.meta_json, "checkpoint '" + path + "': metadata");
     const std::string format = meta.is_object() ? meta.value("format", "") : "";
     G2L_CHECK(format == "g2l-train" || format == "g2l-model", "checkpoint '", path,
               "' is not a g2l model checkpoint or export (format '", format, "')");

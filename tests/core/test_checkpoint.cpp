@@ -7,6 +7,7 @@
 #include <iterator>
 
 #include "core/checkpoint.h"
+#include "core/json.h"
 #include "core/rng.h"
 #include "testing.h"
 
@@ -242,4 +243,26 @@ TEST_CASE("checkpoint: valid checksum but bad dtype, duplicate names, misaligned
     write_bytes(dir + "/nbytes.g2l", reseal(b));
     REQUIRE_THROWS_WITH(load_checkpoint(dir + "/nbytes.g2l"),
                         Contains("needs 8 bytes, header says 12"));
+}
+
+TEST_CASE("parse_json_strict: duplicate keys, syntax errors and trailing text name the source",
+          "[core][json]") {
+    using Catch::Matchers::Contains;
+    CHECK(g2l::parse_json_strict(R"({"a": 1, "b": {"c": [1, 2]}})", "t").at("b").at("c").size() == 2);
+    REQUIRE_THROWS_WITH(g2l::parse_json_strict(R"({"lr": 1, "lr": 2})", "cfg.json"),
+                        Contains("cfg.json") && Contains("duplicate key 'lr'"));
+    REQUIRE_THROWS_WITH(g2l::parse_json_strict(R"({"optim": {"lr": 1, "beta1": 0.9, "lr": 2}})", "c"),
+                        Contains("duplicate key 'optim.lr'"));
+    // the same key in different objects is fine
+    CHECK_NOTHROW(g2l::parse_json_strict(R"([{"x": 1}, {"x": 2}, {"y": {"x": 3}}])", "t"));
+    REQUIRE_THROWS_WITH(g2l::parse_json_strict(R"([{"x": 1, "y": {"z": 1}, "x": 2}])", "t"),
+                        Contains("duplicate key 'x'"));
+    REQUIRE_THROWS_WITH(g2l::parse_json_strict("{\"a\": 1,}", "s"), Contains("s: invalid JSON at byte"));
+    REQUIRE_THROWS_WITH(g2l::parse_json_strict("{} {}", "s"), Contains("invalid JSON"));
+    REQUIRE_THROWS_WITH(g2l::parse_json_strict("", "empty.json"), Contains("empty.json: invalid JSON"));
+    REQUIRE_THROWS_WITH(g2l::parse_json_strict("[NaN]", "s"), Contains("invalid JSON"));
+    REQUIRE_THROWS_WITH(g2l::parse_json_strict("// c\n{}", "s"), Contains("invalid JSON"));
+    const auto o = g2l::parse_json_strict_ordered(R"({"b": 1, "a": 2})", "t");
+    CHECK(o.begin().key() == "b");
+    REQUIRE_THROWS_WITH(g2l::parse_json_file("/nonexistent/x.json"), Contains("/nonexistent/x.json"));
 }

@@ -37,7 +37,7 @@ TEST_CASE("BOP detection files: malformed input names the file, entry and key", 
         REQUIRE_THROWS_WITH(parse_bop_detections(text, "dets.json"),
                             Contains("dets.json") && Contains(what));
     };
-    bad("{", "not valid JSON");
+    bad("{", "invalid JSON at byte");
     bad(R"({"category_id": 1})", "expected a JSON array");
     bad("[1]", "entry 0: expected an object");
     bad(R"([{"bbox": [1, 2, 3, 4]}])", "exactly one of 'category_id' and 'obj_id'");

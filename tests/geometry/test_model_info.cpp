@@ -102,7 +102,7 @@ TEST_CASE("load_models_info_json reads BOP entries and symmetry flags", "[geomet
     REQUIRE_THROWS_WITH(load_models_info_json(dir + "/bad2.json"), Contains("'x'"));
     write_file(dir + "/bad3.json", R"({"3": {"diameter": 1, )");
     REQUIRE_THROWS_WITH(load_models_info_json(dir + "/bad3.json"),
-                        Contains("bad3.json") && Contains("not valid JSON"));
+                        Contains("bad3.json") && Contains("invalid JSON"));
     write_file(dir + "/bad4.json", R"({"2": {"diameter": -4, "min_x": 0, "min_y": 0, "min_z": 0,
                                      "size_x": 1, "size_y": 1, "size_z": 1}})");
     REQUIRE_THROWS_WITH(load_models_info_json(dir + "/bad4.json"),

@@ -12,11 +12,13 @@ namespace {
 const G2LConfig& checked(const G2LConfig& c) {
     G2L_CHECK(c.rot_unit == "mm" || c.rot_unit == "kp_rms",
               "G2LConfig: rot_unit must be \"mm\" or \"kp_rms\", got \"", c.rot_unit, "\"");
-    G2L_CHECK(c.num_classes >= 1, "G2LConfig: num_classes must be >= 1, got ", c.num_classes);
-    G2L_CHECK(c.num_keypoints >= 3, "G2LConfig: num_keypoints must be >= 3 (Kabsch), got ",
-              c.num_keypoints);
-    G2L_CHECK(std::isfinite(c.width) && c.width > 0,
-              "G2LConfig: width must be finite and > 0, got ", c.width);
+    // Upper bounds keep a corrupt or hostile model file from allocating gigabytes.
+    G2L_CHECK(c.num_classes >= 1 && c.num_classes <= 4096,
+              "G2LConfig: num_classes must be in [1, 4096], got ", c.num_classes);
+    G2L_CHECK(c.num_keypoints >= 3 && c.num_keypoints <= 256,
+              "G2LConfig: num_keypoints must be in [3, 256] (Kabsch needs 3), got ", c.num_keypoints);
+    G2L_CHECK(std::isfinite(c.width) && c.width > 0 && c.width <= 16,
+              "G2LConfig: width must be finite, > 0 and <= 16, got ", c.width);
     G2L_CHECK(c.dropout >= 0 && c.dropout < 1, "G2LConfig: dropout must be in [0, 1), got ",
               c.dropout);
     G2L_CHECK(c.rre_dropout >= 0 && c.rre_dropout < 1,

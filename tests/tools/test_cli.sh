@@ -100,6 +100,19 @@ expect 0 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --rg
 [ -s "$T/vis.png" ] || fail "g2l_infer --vis wrote no image"
 [ "$(grep -c '"status": "ok"' "$T/poses.json")" -eq 2 ] || fail "g2l_infer: expected 2 poses in $(cat "$T/poses.json")"
 grep -q '"status": "box outside image"' "$T/poses.json" || fail "the box right of the image got no status"
+# Degenerate inputs at the inference tools: an 8-bit image as depth, an RGB image of another
+# size, a zero focal length: one clear line each.
+expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/rgb/000001.png" --camera "$F/scene_camera.json" --image-id 1 --box 8,186,132,139,191
+has "000001.png"
+has "16-bit"
+expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --rgb "$S/docs/images/renderer_real_vs_synthetic.jpg" --camera "$F/scene_camera.json" --image-id 1 --box 8,186,132,139,191
+has "but the depth"
+printf '{"fx": 0, "fy": 500, "cx": 320, "cy": 240, "depth_scale": 0.1}' > "$T/cam0.json"
+expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$T/cam0.json" --box 8,186,132,139,191
+has "focal lengths must be > 0"
+printf '{"fx": 500, "fx": 600, "fy": 500, "cx": 320, "cy": 240}' > "$T/camdup.json"
+expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$T/camdup.json" --box 8,186,132,139,191
+has "duplicate key 'fx'"
 expect 2 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real --boxes file
 has "needs --detections"
 expect 0 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \

@@ -75,6 +75,36 @@ void add_models(RunData& rd, const data::Dataset& ds) {
     }
 }
 
+// Every image a run will read, checked before the first step: the depth PNGs of the
+// validation sets are decoded in full (a corrupt, truncated or 8-bit file is found now, not
+// after the first epoch); the training sets' images, which may be many, by their headers
+// (size against the intrinsics). Throws g2l::Error naming the file.
+void preflight_images(const RunData& rd, bool verbose) {
+    size_t decoded = 0, probed = 0;
+    for (const auto* list : {&rd.val, &rd.train}) {
+        const bool full = list == &rd.val;
+        for (const auto& src : *list) {
+            if (!src.bop) continue;
+            for (const auto& f : src.bop->frames()) {
+                if (f.depth_path.empty()) continue;
+                int w = 0, h = 0;
+                if (full) {
+                    (void)data::load_depth_png(f.depth_path, &w, &h);
+                    ++decoded;
+                } else {
+                    data::image_size(f.depth_path, &w, &h);
+                    ++probed;
+                }
+                G2L_CHECK(w == f.K.width && h == f.K.height, "depth image '", f.depth_path, "' is ",
+                          w, " x ", h, " but its camera is ", f.K.width, " x ", f.K.height);
+            }
+        }
+    }
+    if (verbose && decoded + probed > 0)
+        std::printf("checked %zu validation depth images (decoded) and %zu training depth images "
+                    "(headers)\n", decoded, probed);
+}
+
 RunData prepare_data(const TrainConfig& cfg, bool verbose) {
     RunData rd;
     for (size_t i = 0; i < cfg.data.object_ids.size(); ++i)
@@ -236,6 +266,7 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
         fs::remove(probe, ec);
     }
     RunData rd = prepare_data(cfg, opt.progress);
+    preflight_images(rd, opt.progress);
     G2L_CHECK(!rd.train.empty(), "data.train: no training source configured");
 
     nn::G2LConfig mc = model_config(cfg, rd.keypoints.empty() ? 8 : int(rd.keypoints[0].size()));

@@ -216,3 +216,22 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
     CHECK_THROWS_WITH(train::export_model(cut, dir + "/x.g2l"), Catch::Contains("cut.g2l"));
     CHECK_FALSE(fs::exists(dir + "/x.g2l"));
 }
+
+TEST_CASE("g2l_train: a corrupt validation depth image is reported before the first step",
+          "[train][trainer][errors]") {
+    const std::string dir = testing::temp_dir("preflight");
+    // A copy of the fixture dataset whose second depth image is cut in half.
+    const std::string mini = dir + "/ycbv_mini";
+    fs::copy(testing::fixture_dir() + "/ycbv_mini", mini, fs::copy_options::recursive);
+    const std::string bad = mini + "/train_real/000000/depth/000011.png";
+    fs::resize_file(bad, fs::file_size(bad) / 2);
+    nlohmann::json j = nlohmann::json::parse(tiny_config(dir + "/run", 1, 8));
+    j["data"]["val"][0]["root"] = mini;
+    const auto cfg = train::parse_config_text(j.dump(), "p.json");
+    train::TrainOptions opt;
+    opt.progress = false;
+    REQUIRE_THROWS_WITH(train::run_training(cfg, opt), Catch::Contains("000011.png"));
+    // Nothing was trained: no step was logged, no checkpoint written.
+    CHECK_FALSE(fs::exists(dir + "/run/last.g2l"));
+    CHECK(logged(dir + "/run", "loss").empty());
+}

@@ -31,9 +31,7 @@ nn::G2LConfig model_config(const TrainConfig& cfg, int num_keypoints) {
 namespace {
 
 const json& key(const json& j, const char* k, const std::string& path) {
-    G2L_CHECK(j.is_object() && j.contains(k), "checkpoint '", path, "': metadata has no '", k,
-              "' (not a g2l training checkpoint?)");
-    return j.at(k);
+    return nn::metadata_key(j, k, path);
 }
 
 json model_json(const nn::G2LConfig& c) { return nn::g2l_config_json(c); }

@@ -272,6 +272,27 @@ struct PoseEngine::Impl {
         max_points(pf.data(), bb.c5, N, g.data());
     }
 
+    // y [3K] = the rows of `out` for class `cls` (all rows when out has 3K: shared heads) x + b.
+    void class_rows(const Affine& out, int cls, const float* x, float* y) const {
+        const int64_t r0 = out.cout != K3 ? int64_t(cls) * K3 : 0;
+        Eigen::Map<const MatF> W(out.w.data() + r0 * out.cin, K3, out.cin);
+        Eigen::Map<const Eigen::VectorXf> xv(x, out.cin);
+        Eigen::Map<Eigen::VectorXf> yv(y, K3);
+        yv.noalias() = W * xv;
+        for (int64_t r = 0; r < K3; ++r) yv[r] += out.b[size_t(r0 + r)];
+    }
+
+    // A head followed by the max over each object's points: [S, *c] rows (in h1 or h2).
+    const float* pooled_head(const Head& h, int64_t N, int64_t row0, const std::vector<int>& cls,
+                             int64_t* c) {
+        const float* y = run_head(h, N, row0, cls);
+        *c = h.rest.empty() ? h.point.cout : h.rest.back().cout;
+        std::vector<float>& pooled = h2.data() == y ? h1 : h2;
+        grow(&pooled, size_t(int64_t(cls.size()) * *c));
+        max_points(y, *c, N, pooled.data());
+        return pooled.data();
+    }
+
     // A head over feat rows [row0, ...) (cin of its first layer) -> its last layer in *out_buf.
     const float* run_head(const Head& h, int64_t N, int64_t row0, const std::vector<int>& cls) {
         head_bias(h, g.data(), cls);
@@ -524,39 +545,19 @@ void PoseEngine::estimate(const std::vector<PoseQuery>& qs, int max_points, int 
         float* kp = kp_out.data();
         float* resid = kp + int64_t(act.size()) * m.K3;
         if (m.rre) {
-            const float* h = m.run_head(m.rre_head, N, P, cls);
-            const int64_t c = m.rre_head.rest.back().cout;
-            std::vector<float>& pooled = m.h2.data() == h ? m.h1 : m.h2;
-            grow(&pooled, size_t(int64_t(act.size()) * c));
-            m.max_points(h, c, N, pooled.data());
-            const bool per_class = m.rre_out.cout != m.K3;
-            for (size_t s = 0; s < act.size(); ++s) {
-                const float* v = pooled.data() + int64_t(s) * c;
-                const int64_t r0 = per_class ? int64_t(cls[s]) * m.K3 : 0;
-                Eigen::Map<const MatF> W(m.rre_out.w.data() + r0 * m.rre_out.cin, m.K3, m.rre_out.cin);
-                Eigen::Map<const Eigen::VectorXf> xv(v, c);
-                Eigen::Map<Eigen::VectorXf> yv(resid + int64_t(s) * m.K3, m.K3);
-                yv.noalias() = W * xv;
-                for (int64_t r = 0; r < m.K3; ++r) yv[r] += m.rre_out.b[size_t(r0 + r)];
-            }
+            int64_t c = 0;
+            const float* pooled = m.pooled_head(m.rre_head, N, P, cls, &c);
+            for (size_t s = 0; s < act.size(); ++s)
+                m.class_rows(m.rre_out, cls[s], pooled + int64_t(s) * c, resid + int64_t(s) * m.K3);
         }
         {
-            const float* h = m.run_head(m.rot_head, N, 0, cls);
-            const int64_t c = m.rot_head.rest.back().cout;
-            std::vector<float>& pooled = m.h2.data() == h ? m.h1 : m.h2;
-            grow(&pooled, size_t(int64_t(act.size()) * c));
-            m.max_points(h, c, N, pooled.data());
-            const bool per_class = m.rot_out.cout != m.K3;
+            int64_t c = 0;
+            const float* pooled = m.pooled_head(m.rot_head, N, 0, cls, &c);
             for (size_t s = 0; s < act.size(); ++s) {
-                Impl::run_vec(m.rot_fc[0], pooled.data() + int64_t(s) * c, m.vec_a.data());
+                Impl::run_vec(m.rot_fc[0], pooled + int64_t(s) * c, m.vec_a.data());
                 Impl::run_vec(m.rot_fc[1], m.vec_a.data(), m.vec_b.data());
                 Impl::run_vec(m.rot_fc[2], m.vec_b.data(), m.vec_a.data());
-                const int64_t r0 = per_class ? int64_t(cls[s]) * m.K3 : 0;
-                Eigen::Map<const MatF> W(m.rot_out.w.data() + r0 * m.rot_out.cin, m.K3, m.rot_out.cin);
-                Eigen::Map<const Eigen::VectorXf> xv(m.vec_a.data(), m.rot_out.cin);
-                Eigen::Map<Eigen::VectorXf> yv(kp + int64_t(s) * m.K3, m.K3);
-                yv.noalias() = W * xv;
-                for (int64_t r = 0; r < m.K3; ++r) yv[r] += m.rot_out.b[size_t(r0 + r)];
+                m.class_rows(m.rot_out, cls[s], m.vec_a.data(), kp + int64_t(s) * m.K3);
             }
         }
         // Kabsch on block B's keypoints, corrected by block C's residual and Kabsch again

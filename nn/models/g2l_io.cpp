@@ -33,14 +33,14 @@ G2LConfig g2l_config_from_json(const json& mj) {
     return c;
 }
 
-namespace {
-
-const json& key(const json& j, const char* k, const std::string& path) {
+const json& metadata_key(const json& j, const char* k, const std::string& path) {
     G2L_CHECK(j.is_object() && j.contains(k), "checkpoint '", path, "': metadata has no '", k,
               "' (not a g2l model checkpoint?)");
     return j.at(k);
 }
 
+namespace {
+const json& key(const json& j, const char* k, const std::string& path) { return metadata_key(j, k, path); }
 }  // namespace
 
 LoadedModel load_model(const std::string& path) {

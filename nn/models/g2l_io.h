@@ -21,6 +21,9 @@ nlohmann::json g2l_config_json(const G2LConfig& c);
 /// behaviour those files were trained with. Throws nlohmann::json::exception.
 G2LConfig g2l_config_from_json(const nlohmann::json& j);
 
+/// j[k] of a model file's metadata; throws g2l::Error naming the file when it is missing.
+const nlohmann::json& metadata_key(const nlohmann::json& j, const char* k, const std::string& path);
+
 /// What the pose pipeline needs to know of one object beyond its keypoints.
 struct ModelObjectInfo {
     double diameter = 0;     ///< mm (the sphere crop's radius is radius_scale x this)

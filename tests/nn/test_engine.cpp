@@ -139,7 +139,7 @@ TEST_CASE("PoseEngine: the poses of the eval-mode graph for every network varian
     }
 }
 
-TEST_CASE("PoseEngine: several objects batched give each object's own result; failures keep "
+TEST_CASE("PoseEngine: several objects batched give each object's own result, failures keep "
           "their status", "[nn][engine]") {
     nn::G2LConfig c;
     c.num_classes = 3;

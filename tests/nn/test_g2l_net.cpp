@@ -429,7 +429,7 @@ TEST_CASE("rot_forward: a per-sample scale divides the input and scales the outp
     CHECK_THROWS_WITH(net.rot_forward(x, oh, Tensor::ones({1, 3})), Catch::Contains("[B, 1, 1]"));
 }
 
-TEST_CASE("select_class_block: picks each sample's block; gradients reach only that block",
+TEST_CASE("select_class_block: picks each sample's block, gradients reach only that block",
           "[nn][g2l][grad]") {
     // x [B=3, C*F = 4*2] and [B, C*F, N=3]; classes 2, 0, 3.
     Rng rng(11);
@@ -456,7 +456,7 @@ TEST_CASE("select_class_block: picks each sample's block; gradients reach only t
     CHECK_THROWS_WITH(nn::select_class_block(x, Tensor::zeros({2, 4})), Catch::Contains("onehot"));
 }
 
-TEST_CASE("G2LNet class_heads: one output block per class in A, B and C; classes train apart",
+TEST_CASE("G2LNet class_heads: one output block per class in A, B and C, classes train apart",
           "[nn][g2l]") {
     nn::G2LConfig c;
     c.num_classes = 3;

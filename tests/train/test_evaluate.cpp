@@ -81,7 +81,7 @@ TEST_CASE("aggregate: instances of unknown objects or bad diameters throw", "[tr
     CHECK(empty.instances == 0);
 }
 
-TEST_CASE("evaluate_instances: detector boxes equal to the GT boxes give the GT-box results; "
+TEST_CASE("evaluate_instances: detector boxes equal to the GT boxes give the GT-box results, "
           "undetected instances are misses", "[train][eval]") {
     const std::string root = testing::fixture_dir() + "/ycbv_mini";
     const data::Dataset ds = data::open_bop(root, "train_real", {});

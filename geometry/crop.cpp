@@ -95,6 +95,14 @@ std::vector<int> crop_indices(const std::string& crop, const Points& pts,
     return kept;
 }
 
+Points crop_points(const std::string& crop, const Points& pts, const Eigen::Vector3d& centre,
+                   double radius) {
+    const std::vector<int> keep = crop_indices(crop, pts, centre, radius);
+    Points out(int64_t(keep.size()), 3);
+    for (size_t i = 0; i < keep.size(); ++i) out.row(int64_t(i)) = pts.row(keep[i]);
+    return out;
+}
+
 Box2i clip_box(const Box2i& b, int width, int height) {
     const int64_t x0 = std::max<int64_t>(0, b.x), y0 = std::max<int64_t>(0, b.y);
     const int64_t x1 = std::min<int64_t>(width, int64_t(b.x) + std::max(0, b.w));

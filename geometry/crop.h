@@ -42,6 +42,11 @@ std::vector<int> crop_slab_adaptive(const Points& pts, double centre_z, double d
 std::vector<int> crop_indices(const std::string& crop, const Points& pts,
                               const Eigen::Vector3d& centre, double radius);
 
+/// The rows of `pts` that crop_indices keeps, in order, as a new point set (what the networks
+/// get: training samples, g2l_eval and the inference library crop through this pair).
+Points crop_points(const std::string& crop, const Points& pts, const Eigen::Vector3d& centre,
+                   double radius);
+
 /// `box` clipped to a width x height image (an empty box when nothing is left).
 Box2i clip_box(const Box2i& box, int width, int height);
 

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // g2l::PoseEstimator: the crop step (geometry/crop.h, shared with training samples and
-// g2l_eval) in front of nn::estimate_pose, behind a header of plain types.
+// g2l_eval) in front of the compiled networks (nn::PoseEngine), behind a header of plain types.
 #include "g2l/pose_estimator.h"
 
 #include <chrono>
@@ -175,11 +175,9 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
         }
         const geom::Points pts = geom::depth_to_points(depth, f.width, f.height, K, box);
         const double radius = m.model.radius_scale * m.model.objects.at(b.obj_id).diameter;
-        const std::vector<int> keep = geom::crop_indices(m.model.crop, pts, centre, radius);
         geom::Points& crop = m.crops[i];
-        crop.resize(int64_t(keep.size()), 3);
-        for (size_t k = 0; k < keep.size(); ++k) crop.row(int64_t(k)) = pts.row(keep[k]);
-        p.num_crop_points = int(keep.size());
+        crop = geom::crop_points(m.model.crop, pts, centre, radius);
+        p.num_crop_points = int(crop.rows());
         p.timings.crop_ms = ms_since(t0);
         m.queries.push_back({&crop, cls->second, &m.model.keypoints[size_t(cls->second)]});
         m.query_box.push_back(i);

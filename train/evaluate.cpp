@@ -181,10 +181,7 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                     crop = pts;
                 } else if (opt.centre_from_mask ? sphere_centre(ds, f, inst, depth, w, h, box, &c)
                                                 : geom::box_centre(depth.data(), w, h, f.K, box, &c)) {
-                    const double r = opt.radius_scale * om.info.diameter;
-                    const std::vector<int> keep = geom::crop_indices(opt.crop, pts, c, r);
-                    crop.resize(int64_t(keep.size()), 3);
-                    for (size_t i = 0; i < keep.size(); ++i) crop.row(int64_t(i)) = pts.row(keep[i]);
+                    crop = geom::crop_points(opt.crop, pts, c, opt.radius_scale * om.info.diameter);
                 } else {
                     have = false;
                     res.status = "no depth";

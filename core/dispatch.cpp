@@ -3,14 +3,6 @@
 
 namespace g2l {
 
-void require_cpu(const char* op, std::initializer_list<const Tensor*> ts) {
-    for (const Tensor* t : ts) {
-        if (t && t->defined())
-            G2L_CHECK(t->device().is_cpu(), op, ": no CUDA kernel for this op yet; tensor ",
-                      t->desc(), " must be on cpu (move it with .to(Device::cpu()))");
-    }
-}
-
 void require_same(const char* op, std::initializer_list<const Tensor*> ts) {
     const Tensor* first = nullptr;
     for (const Tensor* t : ts) {

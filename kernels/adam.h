@@ -6,6 +6,8 @@
 
 #include <cstdint>
 
+#include "core/tensor.h"
+
 namespace g2l::kernels {
 
 /// Scalars of one Adam step for one parameter tensor. All values are computed on the host.
@@ -30,5 +32,10 @@ struct AdamArgs {
 /// the OpenMP thread count. T is float or double.
 template <class T>
 void adam_update_cpu(T* p, const T* g, T* m, T* v, int64_t n, const AdamArgs& a);
+
+// ---- tensor-level entry points: one dispatch on (device, dtype) each ----
+
+/// One Adam step on parameter p in place (g, m, v same shape and device).
+void adam_update(Tensor& p, const Tensor& g, Tensor& m, Tensor& v, const AdamArgs& a);
 
 }  // namespace g2l::kernels

@@ -14,6 +14,8 @@
 
 #include <cstdint>
 
+#include "core/tensor.h"
+
 namespace g2l::kernels {
 
 /// Every size of one conv2d call. Ho, Wo = floor((H + 2p - d(k - 1) - 1) / s) + 1, > 0.
@@ -37,5 +39,14 @@ void conv2d_fwd_cpu(const T* x, const T* w, const T* bias, T* y, const Conv2dGeo
 template <class T>
 void conv2d_bwd_cpu(const T* x, const T* w, const T* dy, T* dx, T* dw, T* dbias,
                     const Conv2dGeom& g);
+
+// ---- tensor-level entry points: one dispatch on (device, dtype) each ----
+
+/// y = conv2d(x, w) + bias (bias may be undefined); shapes from g.
+void conv2d_fwd(const Tensor& x, const Tensor& w, const Tensor& bias, Tensor& y,
+                const Conv2dGeom& g);
+/// Writes each non-null, defined gradient; x is read only for dw and w only for dx.
+void conv2d_bwd(const Tensor& x, const Tensor& w, const Tensor& dy, Tensor* dx, Tensor* dw,
+                Tensor* dbias, const Conv2dGeom& g);
 
 }  // namespace g2l::kernels

@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/tensor.h"
+
 namespace g2l::kernels {
 
 /// Unary maps. Parameters p0/p1: Pow exponent p0; Clamp bounds [p0, p1]; AddScalar/MulScalar p0.
@@ -61,5 +63,15 @@ BroadcastPlan make_broadcast_plan(const std::vector<int64_t>& out_shape,
 /// y[k] = a[.] op b[.] over plan.numel output elements (y is contiguous in the output shape).
 template <class T>
 void binary_cpu(BinaryOp op, const T* a, const T* b, T* y, const BroadcastPlan& plan);
+
+// ---- tensor-level entry points: one dispatch on (device, dtype) each ----
+
+/// y = op(x) (x, y same shape).
+void unary_fwd(UnaryOp op, const Tensor& x, Tensor& y, double p0, double p1);
+/// dx = dy op'(x); x / y may be undefined when the op does not read them.
+void unary_bwd(UnaryOp op, const Tensor& x, const Tensor& y, const Tensor& dy, Tensor& dx,
+               double p0, double p1);
+/// y = a op b with broadcasting to y's shape.
+void binary(BinaryOp op, const Tensor& a, const Tensor& b, Tensor& y);
 
 }  // namespace g2l::kernels

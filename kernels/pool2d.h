@@ -11,6 +11,8 @@
 
 #include <cstdint>
 
+#include "core/tensor.h"
+
 namespace g2l::kernels {
 
 /// Every size of one pooling call. B*C planes of H x W in, Ho x Wo out.
@@ -37,5 +39,12 @@ void avg_pool2d_fwd_cpu(const T* x, T* y, const Pool2dGeom& g, bool count_includ
 /// dx[in-image element of window] += dy / divisor (dx is zeroed first, i.e. written).
 template <class T>
 void avg_pool2d_bwd_cpu(const T* dy, T* dx, const Pool2dGeom& g, bool count_include_pad);
+
+// ---- tensor-level entry points: one dispatch on (device, dtype) each ----
+
+void max_pool2d_fwd(const Tensor& x, Tensor& y, Tensor& argmax, const Pool2dGeom& g);
+void max_pool2d_bwd(const Tensor& dy, const Tensor& argmax, Tensor& dx, const Pool2dGeom& g);
+void avg_pool2d_fwd(const Tensor& x, Tensor& y, const Pool2dGeom& g, bool count_include_pad);
+void avg_pool2d_bwd(const Tensor& dy, Tensor& dx, const Pool2dGeom& g, bool count_include_pad);
 
 }  // namespace g2l::kernels

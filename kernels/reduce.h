@@ -8,6 +8,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/tensor.h"
+
 namespace g2l::kernels {
 
 /// y[o, i] = scale * sum_d x[o, d, i]. D is split into fixed-size chunks whose partial sums are
@@ -43,5 +45,21 @@ void norm_dim_fwd_cpu(const T* x, T* y, int64_t outer, int64_t D, int64_t inner,
 template <class T>
 void norm_dim_bwd_cpu(const T* x, const T* y, const T* dy, T* dx, int64_t outer, int64_t D,
                       int64_t inner);
+
+// ---- tensor-level entry points: one dispatch on (device, dtype) each ----
+
+/// The [outer, D, inner] reductions of a tensor (sizes given by the caller).
+void sum_dim(const Tensor& x, Tensor& y, int64_t outer, int64_t D, int64_t inner,
+             double scale = 1.0);
+/// y (its shape) = x summed down to it.
+void sum_to_shape(const Tensor& x, Tensor& y);
+void broadcast_dim(const Tensor& y, Tensor& x, int64_t outer, int64_t D, int64_t inner,
+                   double scale);
+void max_dim_fwd(const Tensor& x, Tensor& y, Tensor& arg, int64_t outer, int64_t D, int64_t inner);
+void max_dim_bwd(const Tensor& dy, const Tensor& arg, Tensor& dx, int64_t outer, int64_t D,
+                 int64_t inner);
+void norm_dim_fwd(const Tensor& x, Tensor& y, int64_t outer, int64_t D, int64_t inner, double eps);
+void norm_dim_bwd(const Tensor& x, const Tensor& y, const Tensor& dy, Tensor& dx, int64_t outer,
+                  int64_t D, int64_t inner);
 
 }  // namespace g2l::kernels

@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/tensor.h"
+
 namespace g2l::kernels {
 
 /// For every o < outer: dst[o, dst_off + j, :] = src[o, src_off + j, :] for j < len, where src
@@ -31,5 +33,17 @@ void index_select_fwd_cpu(const T* x, const int32_t* idx, int64_t L, T* y, int64
 template <class T>
 void index_select_bwd_cpu(const T* dy, const int32_t* idx, int64_t L, T* dx, int64_t outer,
                           int64_t D, int64_t inner);
+
+// ---- tensor-level entry points: one dispatch on (device, dtype) each ----
+
+/// Layout copies (f32, f64 and i32).
+void copy_slab(const Tensor& src, int64_t src_D, int64_t src_off, Tensor& dst, int64_t dst_D,
+               int64_t dst_off, int64_t outer, int64_t len, int64_t inner);
+void permute(const Tensor& x, const std::vector<int64_t>& perm, Tensor& y);
+/// idx: i32 [L] on x's device, values already checked to lie in [0, D).
+void index_select_fwd(const Tensor& x, const Tensor& idx, Tensor& y, int64_t outer, int64_t D,
+                      int64_t inner);
+void index_select_bwd(const Tensor& dy, const Tensor& idx, Tensor& dx, int64_t outer, int64_t D,
+                      int64_t inner);
 
 }  // namespace g2l::kernels

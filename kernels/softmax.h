@@ -6,6 +6,8 @@
 
 #include <cstdint>
 
+#include "core/tensor.h"
+
 namespace g2l::kernels {
 
 /// y = softmax_d(x) (log_softmax when `log`).
@@ -17,5 +19,12 @@ void softmax_fwd_cpu(const T* x, T* y, int64_t outer, int64_t D, int64_t inner, 
 template <class T>
 void softmax_bwd_cpu(const T* y, const T* dy, T* dx, int64_t outer, int64_t D, int64_t inner,
                      bool log);
+
+// ---- tensor-level entry points: one dispatch on (device, dtype) each ----
+
+/// (log-)softmax over D of x seen as [outer, D, inner].
+void softmax_fwd(const Tensor& x, Tensor& y, int64_t outer, int64_t D, int64_t inner, bool log);
+void softmax_bwd(const Tensor& y, const Tensor& dy, Tensor& dx, int64_t outer, int64_t D,
+                 int64_t inner, bool log);
 
 }  // namespace g2l::kernels

@@ -7,6 +7,8 @@
 
 #include <cstdint>
 
+#include "core/tensor.h"
+
 namespace g2l::kernels {
 
 /// y[oh, ow] = x[oh / s, ow / s], Ho = H*s, Wo = W*s.
@@ -28,5 +30,14 @@ void upsample_bilinear2d_fwd_cpu(const T* x, T* y, int64_t planes, int64_t H, in
 template <class T>
 void upsample_bilinear2d_bwd_cpu(const T* dy, T* dx, int64_t planes, int64_t H, int64_t W,
                                  int64_t Ho, int64_t Wo, bool align_corners);
+
+// ---- tensor-level entry points: one dispatch on (device, dtype) each ----
+
+/// x [B, C, H, W] -> y [B, C, H * scale, W * scale].
+void upsample_nearest2d_fwd(const Tensor& x, Tensor& y, int64_t scale);
+void upsample_nearest2d_bwd(const Tensor& dy, Tensor& dx, int64_t scale);
+/// x [B, C, H, W] -> y [B, C, Ho, Wo] (sizes from the tensors).
+void upsample_bilinear2d_fwd(const Tensor& x, Tensor& y, bool align_corners);
+void upsample_bilinear2d_bwd(const Tensor& dy, Tensor& dx, bool align_corners);
 
 }  // namespace g2l::kernels

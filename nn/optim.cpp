@@ -59,8 +59,8 @@ Adam::Adam(std::vector<ParamGroup> groups, AdamOptions options)
                           name, "' share storage (the same tensor listed twice)");
             }
             seen.emplace_back(name, p);
-            slots.push_back({Tensor::zeros(p.shape(), p.dtype()),
-                             Tensor::zeros(p.shape(), p.dtype()), 0});
+            slots.push_back({Tensor::zeros(p.shape(), p.dtype(), p.device()),
+                             Tensor::zeros(p.shape(), p.dtype(), p.device()), 0});
         }
         slots_.push_back(std::move(slots));
     }
@@ -90,12 +90,7 @@ void Adam::step() {
             a.bias_corr2 = 1.0 - std::pow(opt_.beta2, double(s.t));
             a.decoupled = opt_.decoupled;
             Tensor p = param;  // handle: writes go to the caller's storage
-            dispatch_float(p.dtype(), "Adam::step", [&](auto tag) {
-                using T = decltype(tag);
-                kernels::adam_update_cpu<T>(p.data<T>(), grad.data<T>(), s.m.data<T>(),
-                                            s.v.data<T>(), p.numel(), a);
-            });
-            p.impl()->storage->bump_version();
+            kernels::adam_update(p, grad, s.m, s.v, a);
         }
     }
     ++step_count_;

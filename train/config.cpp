@@ -664,6 +664,13 @@ void validate(const TrainConfig& c, const std::string& where) {
     G2L_CHECK(t.log_every > 0, where, ": 'train.log_every' must be > 0, got ", t.log_every);
 }
 
+std::string apply_sets_to_json(const std::string& json_text, const std::vector<std::string>& sets,
+                               const std::string& source_name) {
+    json full = parse_json(json_text, source_name);
+    for (const std::string& s : sets) apply_set(full, s, source_name);
+    return full.dump();
+}
+
 TrainConfig parse_config_text(const std::string& json_text, const std::string& source_name,
                               const std::vector<std::string>& sets,
                               const std::string& base_dir) {

@@ -185,6 +185,12 @@ data::SceneConfig source_scene(const SourceConfig& src, const std::string& where
 /// for an empty path or another "${...}" variable.
 std::string resolve_config_path(const std::string& value, const std::string& base_dir);
 
+/// Applies `--set key.path=value` overrides (the rules of load_config: the path must exist,
+/// except inside a data...scene object) to a JSON config text; returns the new text. Throws
+/// g2l::Error naming source_name and the override.
+std::string apply_sets_to_json(const std::string& json_text, const std::vector<std::string>& sets,
+                               const std::string& source_name);
+
 /// $G2L_SHARED_DATA when set and non-empty; else the first existing <A>/shared/data for A an
 /// ancestor of base_dir (for a config in <repo>/configs: <repo>/../shared/data), then of the
 /// current directory; else base_dir/../../shared/data. Absolute.

@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 
 #include "core/cli.h"
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <map>
@@ -15,6 +16,7 @@
 #include "data/bop.h"
 #include "data/scene.h"
 #include "geometry/keypoints.h"
+#include "geometry/metrics.h"
 #include "geometry/symmetry.h"
 #include "train/rot_study.h"
 #include "train/sources.h"
@@ -31,6 +33,7 @@ int main(int argc, char** argv) {
     train::RotStudyConfig c;
     int pool = 0, val_n = 100, threads = 0, crop_points = 1024;
     bool noise = false, val_on_pool = false;
+    double min_visib = 0, val_min_visib = 0;
     app.add_option("--models", models_root, "BOP root whose models/ are rendered")->required();
     app.add_option("--objects", objects, "object ids (default 5)")->delimiter(',');
     app.add_option("--scene", scene_json, "scene config JSON (data/scene.h keys) for the renders");
@@ -38,6 +41,13 @@ int main(int argc, char** argv) {
     app.add_option("--pool", pool, "render this many training samples once and draw from them "
                                    "(0 = a fresh render for every sample)");
     app.add_option("--val", val_n, "held-out validation samples");
+    app.add_option("--min-visib", min_visib, "training instances less visible than this fraction "
+                                             "give no sample (sampling.min_visib_fract)")
+        ->check(CLI::Range(0.0, 1.0));
+    app.add_option("--val-min-visib", val_min_visib, "the same floor for the validation renders "
+                                                     "(their errors are also reported per "
+                                                     "visibility bucket)")
+        ->check(CLI::Range(0.0, 1.0));
     app.add_flag("--val-on-pool", val_on_pool, "validate on the training pool (how well it fits)");
     app.add_option("--steps", c.steps, "optimiser steps");
     app.add_option("--batch", c.batch, "samples per step");
@@ -115,14 +125,29 @@ int main(int argc, char** argv) {
         data::SceneConfig vscene = scene;
         vscene.seed = scene.seed + 7777;
         auto src = std::make_unique<train::SyntheticSource>(scene, scene_models, maker,
-                                                            int64_t(1) << 40, 0);
-        train::SyntheticSource vsrc(vscene, scene_models, maker, int64_t(1) << 40, 0);
+                                                            int64_t(1) << 40, 0, min_visib);
+        train::SyntheticSource vsrc(vscene, scene_models, maker, int64_t(1) << 40, 0,
+                                    val_min_visib);
         std::vector<train::PoseSample> val;
+        std::vector<double> val_visib;  // rendered visible fraction of each validation sample
         for (int64_t i = 0; int(val.size()) < val_n && i < int64_t(val_n) * 20; ++i) {
             Rng r(uint64_t(i) + 99);
             train::PoseSample s;
-            if (vsrc.get(i * scene.targets_max, r, &s)) val.push_back(std::move(s));
+            if (vsrc.get(i * scene.targets_max, r, &s)) {
+                val.push_back(std::move(s));
+                const int64_t idx = i * scene.targets_max;
+                val_visib.push_back(vsrc.frame(vsrc.frame_of(idx))
+                                        .instances[size_t(vsrc.instance_of(idx))]
+                                        .visib_fract);
+            }
         }
+        // Visibility buckets of the validation samples: [0, 0.3), [0.3, 0.7), [0.7, 1].
+        const double edges[4] = {0, 0.3, 0.7, 1.0001};
+        int bucket_n[3] = {0, 0, 0};
+        for (double v : val_visib)
+            for (int b = 0; b < 3; ++b) bucket_n[b] += v >= edges[b] && v < edges[b + 1];
+        std::printf("validation visibility buckets <0.3 / 0.3-0.7 / >=0.7: %d / %d / %d samples\n",
+                    bucket_n[0], bucket_n[1], bucket_n[2]);
         std::vector<train::PoseSample> pooled;
         for (int64_t i = 0; int(pooled.size()) < pool && i < int64_t(pool) * 20; ++i) {
             Rng r(uint64_t(i) + 7);
@@ -156,8 +181,34 @@ int main(int argc, char** argv) {
                                          p.val_kp_err_mm, p.val_kp_err_frac,
                                          p.val_rot_err_deg_median, p.val_rot_err_deg_mean,
                                          p.val_acc_10deg);
+                             json buckets = json::array();
+                             if (!val_on_pool && p.val_kp_err_frac_each.size() == val_visib.size()) {
+                                 std::printf("        by visibility <0.3 / 0.3-0.7 / >=0.7: kp/d");
+                                 std::string rot_line;
+                                 for (int b = 0; b < 3; ++b) {
+                                     std::vector<double> kp, rot;
+                                     for (size_t k = 0; k < val_visib.size(); ++k)
+                                         if (val_visib[k] >= edges[b] && val_visib[k] < edges[b + 1]) {
+                                             kp.push_back(p.val_kp_err_frac_each[k]);
+                                             rot.push_back(p.val_rot_err_deg_each[k]);
+                                         }
+                                     double mkp = 0;
+                                     for (double e : kp) mkp += e;
+                                     mkp = kp.empty() ? 0 : mkp / double(kp.size());
+                                     const double mrot = rot.empty() ? 0 : geom::median(rot);
+                                     std::printf(" %.3f", mkp);
+                                     rot_line += " " + std::to_string(int(std::lround(mrot)));
+                                     buckets.push_back({{"visib_min", edges[b]},
+                                                        {"visib_max", std::min(1.0, edges[b + 1])},
+                                                        {"n", kp.size()},
+                                                        {"val_kp_err_frac", mkp},
+                                                        {"val_rot_err_deg_median", mrot}});
+                                 }
+                                 std::printf(", rot median deg%s\n", rot_line.c_str());
+                             }
                              std::fflush(stdout);
                              curve.push_back({{"step", p.step}, {"samples", p.samples},
+                                              {"by_visibility", buckets},
                                               {"seconds", p.seconds},
                                               {"train_kp_err_mm", p.train_kp_err_mm},
                                               {"val_kp_err_mm", p.val_kp_err_mm},

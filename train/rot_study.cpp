@@ -184,11 +184,13 @@ std::vector<RotStudyPoint> rot_study(const RotStudyConfig& cfg, int num_classes,
                 }
                 kp_err += best_kp;
                 kp_frac += best_kp / diameters[size_t(s.class_index)];
+                pt.val_kp_err_frac_each.push_back(best_kp / diameters[size_t(s.class_index)]);
                 rot_err.push_back(best_rot);
             }
         }
         pt.val_kp_err_mm = kp_err / double(val.size());
         pt.val_kp_err_frac = kp_frac / double(val.size());
+        pt.val_rot_err_deg_each = rot_err;
         pt.val_rot_err_deg_median = geom::median(rot_err);
         double sum = 0;
         int under = 0;

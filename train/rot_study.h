@@ -50,6 +50,8 @@ struct RotStudyPoint {
     double val_rot_err_deg_median = 0;  ///< median rotation error (modulo symmetries if given)
     double val_rot_err_deg_mean = 0;
     double val_acc_10deg = 0;     ///< fraction of validation samples under 10 degrees
+    std::vector<double> val_kp_err_frac_each;  ///< per validation sample, in `val` order
+    std::vector<double> val_rot_err_deg_each;  ///< per validation sample, in `val` order
 };
 
 /// Source of training samples: fills *out for draw number i (i = 0, 1, ...) and returns true,

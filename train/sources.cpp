@@ -64,10 +64,13 @@ bool BopSource::get(int64_t index, Rng& rng, PoseSample* out) {
 
 SyntheticSource::SyntheticSource(const data::SceneConfig& scene,
                                  std::vector<data::SceneModel> models, const SampleMaker& maker,
-                                 int64_t frames, int render_threads)
+                                 int64_t frames, int render_threads, double min_visib_fract)
     : maker_(maker), gen_(scene, models), frames_(frames),
-      per_frame_(std::max(1, scene.targets_max)), render_threads_(render_threads) {
+      per_frame_(std::max(1, scene.targets_max)), render_threads_(render_threads),
+      min_visib_fract_(min_visib_fract) {
     G2L_CHECK(frames > 0, "SyntheticSource: frames must be > 0, got ", frames);
+    G2L_CHECK(std::isfinite(min_visib_fract) && min_visib_fract >= 0 && min_visib_fract <= 1,
+              "SyntheticSource: min_visib_fract must be in [0, 1], got ", min_visib_fract);
     std::vector<int> targets = scene.target_obj_ids;
     if (targets.empty()) {
         for (const data::SceneModel& m : models) targets.push_back(m.obj_id);
@@ -108,6 +111,7 @@ bool SyntheticSource::get(int64_t index, Rng& rng, PoseSample* out) {
     const data::RenderedInstance& ri = frame_.instances[static_cast<size_t>(k)];
     // An instance that is off-image or fully occluded has no box at all: nothing to crop.
     if (ri.bbox_visib.empty() && ri.bbox_obj.empty()) return false;
+    if (ri.visib_fract < min_visib_fract_) return false;
     data::Instance inst;
     inst.obj_id = ri.obj_id;
     inst.pose = ri.pose;

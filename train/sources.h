@@ -70,15 +70,19 @@ public:
     /// scene: the scene distribution (validated); models: borrowed meshes (must outlive the
     /// source); frames > 0: number of frames indexed (size() = frames * targets_max);
     /// render_threads: OpenMP threads of the rasterizer; 1 (default) suits one source per loader
-    /// thread, 0 = the OpenMP default. Never changes the result.
-    /// Throws g2l::Error for frames <= 0, a target object without a class in `maker` (every
-    /// model when target_obj_ids is empty), or whatever SceneGenerator's constructor throws.
+    /// thread, 0 = the OpenMP default. Never changes the result. min_visib_fract: instances whose
+    /// rendered visible fraction is below it give no sample (get returns false).
+    /// Throws g2l::Error for frames <= 0, min_visib_fract outside [0, 1], a target object without
+    /// a class in `maker` (every model when target_obj_ids is empty), or whatever
+    /// SceneGenerator's constructor throws.
     SyntheticSource(const data::SceneConfig& scene, std::vector<data::SceneModel> models,
-                    const SampleMaker& maker, int64_t frames, int render_threads = 1);
+                    const SampleMaker& maker, int64_t frames, int render_threads = 1,
+                    double min_visib_fract = 0);
 
     int64_t size() const override { return frames_ * per_frame_; }
     /// Renders the frame (cached: the indices of one frame render it once). Returns false also
-    /// when the frame has no annotated instance.
+    /// when the frame has no annotated instance or the instance is less visible than
+    /// min_visib_fract.
     bool get(int64_t index, Rng& rng, PoseSample* out) override;
 
     /// Frame index of a sample index (index / targets_max).
@@ -96,6 +100,7 @@ private:
     int64_t frames_ = 0;
     int64_t per_frame_ = 1;
     int render_threads_ = 1;
+    double min_visib_fract_ = 0;
     int64_t cached_frame_ = -1;
     data::RenderedFrame frame_;
 };

@@ -183,14 +183,17 @@ Sources make_train_sources(const RunData& rd, const TrainConfig& cfg, int epoch)
     Sources s;
     for (const auto& src : rd.train) {
         if (src.bop) {
-            s.list.push_back(std::make_unique<BopSource>(*src.bop, *rd.maker,
-                                                         src.cfg->min_visib_fract,
-                                                         src.cfg->max_frames));
+            // The stricter of the source's and the sampling section's visibility floors.
+            s.list.push_back(std::make_unique<BopSource>(
+                *src.bop, *rd.maker,
+                std::max(src.cfg->min_visib_fract, cfg.sampling.min_visib_fract),
+                src.cfg->max_frames));
         } else {
             data::SceneConfig scene = src.scene;
             scene.seed = mix(mix(cfg.seed, uint64_t(epoch)), scene.seed);  // fresh renders
             s.list.push_back(std::make_unique<SyntheticSource>(scene, src.scene_models, *rd.maker,
-                                                               src.cfg->frames));
+                                                               src.cfg->frames, 1,
+                                                               cfg.sampling.min_visib_fract));
         }
     }
     return s;
@@ -230,17 +233,12 @@ std::string fmt_time(double s) {
 
 }  // namespace
 
-TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
-    if (cfg.threads > 0) set_num_threads(cfg.threads);
-    G2L_CHECK(parse_device(cfg.device).is_cpu(), "device '", cfg.device,
-              "': training runs on the CPU in this version (the CUDA backend is not complete)");
-    // ---- the run directory first: a bad one is found before any data is read ----
-    const std::string run_dir = opt.resume_dir.empty() ? cfg.run_dir : opt.resume_dir;
+void prepare_run_dir(const std::string& run_dir, bool resume, bool force) {
     G2L_CHECK(!run_dir.empty(), "run_dir is empty");
-    if (opt.resume_dir.empty()) {
+    if (!resume) {
         std::error_code ec;
         for (const char* f : {"config.json", "steps.jsonl", "last.g2l"})
-            G2L_CHECK(opt.force || !fs::exists(fs::path(run_dir) / f, ec), "run directory '",
+            G2L_CHECK(force || !fs::exists(fs::path(run_dir) / f, ec), "run directory '",
                       run_dir, "' already holds a run (", f, "): continue it with --resume ",
                       run_dir, ", or start over with --force");
     } else {
@@ -253,18 +251,25 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
             if (e.path().filename().string().find(".g2l.tmp.") != std::string::npos)
                 fs::remove(e.path(), ec);
     }
-    {
-        std::error_code ec;
-        fs::create_directories(run_dir, ec);
-        G2L_CHECK(!ec && fs::is_directory(run_dir), "cannot create the run directory '", run_dir,
-                  "': ", ec ? ec.message() : std::string("not a directory"));
-        const fs::path probe = fs::path(run_dir) / ".write_test";
-        std::ofstream t(probe);
-        t << "ok";
-        t.close();
-        G2L_CHECK(t.good(), "the run directory '", run_dir, "' is not writable");
-        fs::remove(probe, ec);
-    }
+    std::error_code ec;
+    fs::create_directories(run_dir, ec);
+    G2L_CHECK(!ec && fs::is_directory(run_dir), "cannot create the run directory '", run_dir,
+              "': ", ec ? ec.message() : std::string("not a directory"));
+    const fs::path probe = fs::path(run_dir) / ".write_test";
+    std::ofstream t(probe);
+    t << "ok";
+    t.close();
+    G2L_CHECK(t.good(), "the run directory '", run_dir, "' is not writable");
+    fs::remove(probe, ec);
+}
+
+TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
+    if (cfg.threads > 0) set_num_threads(cfg.threads);
+    G2L_CHECK(parse_device(cfg.device).is_cpu(), "device '", cfg.device,
+              "': training runs on the CPU in this version (the CUDA backend is not complete)");
+    // ---- the run directory first: a bad one is found before any data is read ----
+    const std::string run_dir = opt.resume_dir.empty() ? cfg.run_dir : opt.resume_dir;
+    prepare_run_dir(run_dir, !opt.resume_dir.empty(), opt.force);
     RunData rd = prepare_data(cfg, opt.progress);
     preflight_images(rd, opt.progress);
     G2L_CHECK(!rd.train.empty(), "data.train: no training source configured");

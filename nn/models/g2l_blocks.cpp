@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "nn/ops/activation.h"
+#include "nn/ops/relu.h"
 #include "nn/ops/concat_conv.h"
 #include "nn/ops/elementwise.h"
 #include "nn/ops/pool_points.h"

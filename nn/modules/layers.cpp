@@ -4,7 +4,7 @@
 #include "core/autograd.h"
 #include "nn/ops/conv2d.h"
 #include "nn/ops/linear.h"
-#include "nn/ops/norm.h"
+#include "nn/ops/batch_norm.h"
 #include "nn/ops/pool_points.h"
 
 namespace g2l::nn {

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "nn/modules/shared_mlp.h"
 
-#include "nn/ops/activation.h"
+#include "nn/ops/relu.h"
 
 namespace g2l::nn {
 

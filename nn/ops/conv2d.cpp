@@ -15,7 +15,6 @@ kernels::Conv2dGeom conv2d_geom(const Tensor& x, const Tensor& w, const Tensor& 
                                 std::array<int64_t, 2> dilation, int64_t groups) {
     require_rank("conv2d", "x", x, 4, "[B, Cin, H, W]");
     require_rank("conv2d", "w", w, 4, "[Cout, Cin/groups, kh, kw]");
-    require_cpu("conv2d", {&x, &w, &b});
     require_same("conv2d", {&x, &w, &b});
     G2L_CHECK(stride[0] >= 1 && stride[1] >= 1, "conv2d: stride must be >= 1, got (", stride[0],
               ", ", stride[1], ")");
@@ -57,11 +56,7 @@ Tensor conv2d(const Tensor& x, const Tensor& w, const Tensor& b, std::array<int6
               std::array<int64_t, 2> padding, std::array<int64_t, 2> dilation, int64_t groups) {
     const kernels::Conv2dGeom g = conv2d_geom(x, w, b, stride, padding, dilation, groups);
     Tensor y = Tensor::empty({g.B, g.Cout, g.Ho, g.Wo}, x.dtype(), x.device());
-    dispatch_float(x.dtype(), "conv2d", [&](auto tag) {
-        using T = decltype(tag);
-        kernels::conv2d_fwd_cpu<T>(x.data<T>(), w.data<T>(), b.defined() ? b.data<T>() : nullptr,
-                                   y.data<T>(), g);
-    });
+    kernels::conv2d_fwd(x, w, b, y, g);
     // dw needs x and dx needs w: keep each only when the other input will want a gradient, so
     // inference-time frozen weights do not pin activations.
     const bool grad_on = autograd::grad_enabled();
@@ -75,14 +70,7 @@ Tensor conv2d(const Tensor& x, const Tensor& w, const Tensor& b, std::array<int6
         if (need_w)
             dw = Tensor::empty({g.Cout, g.Cin / g.groups, g.kh, g.kw}, dy.dtype(), dy.device());
         if (need_b) db = Tensor::empty({g.Cout}, dy.dtype(), dy.device());
-        dispatch_float(dy.dtype(), "conv2d backward", [&](auto tag) {
-            using T = decltype(tag);
-            kernels::conv2d_bwd_cpu<T>(need_w ? xs.data<T>() : nullptr,
-                                       need_x ? ws.data<T>() : nullptr, dy.data<T>(),
-                                       need_x ? dx.data<T>() : nullptr,
-                                       need_w ? dw.data<T>() : nullptr,
-                                       need_b ? db.data<T>() : nullptr, g);
-        });
+        kernels::conv2d_bwd(xs, ws, dy, &dx, &dw, &db, g);
         if (need_x) gr.add(0, dx);
         if (need_w) gr.add(1, dw);
         if (need_b) gr.add(2, db);

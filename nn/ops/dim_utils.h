@@ -10,10 +10,10 @@
 
 namespace g2l::nn::detail {
 
-/// Throws unless x is defined, on the CPU and f32/f64; `what` names the argument ("x", "a").
+/// Throws unless x is defined and f32/f64; `what` names the argument ("x", "a"). The device is
+/// the kernels' business (kernels/dispatch.h).
 inline void check_float_input(const char* op, const char* what, const Tensor& x) {
     G2L_CHECK(x.defined(), op, ": ", what, " is undefined");
-    require_cpu(op, {&x});
     G2L_CHECK(x.dtype() == DType::F32 || x.dtype() == DType::F64, op, ": ", what,
               " must be an f32 or f64 tensor, got ", x.desc());
 }

@@ -4,7 +4,6 @@
 #include <cmath>
 
 #include "core/autograd.h"
-#include "core/dispatch.h"
 #include "kernels/elementwise.h"
 #include "kernels/reduce.h"
 #include "nn/ops/dim_utils.h"
@@ -19,12 +18,7 @@ using kernels::UnaryOp;
 // y = a op b at out_shape, no autograd. Also used by the backward closures (dout op b).
 Tensor binary_raw(BinaryOp op, const Tensor& a, const Tensor& b, const Shape& out_shape) {
     Tensor y = Tensor::empty(out_shape, a.dtype(), a.device());
-    const kernels::BroadcastPlan plan =
-        kernels::make_broadcast_plan(out_shape, a.shape(), b.shape());
-    dispatch_float(a.dtype(), "binary op", [&](auto tag) {
-        using T = decltype(tag);
-        kernels::binary_cpu<T>(op, a.data<T>(), b.data<T>(), y.data<T>(), plan);
-    });
+    kernels::binary(op, a, b, y);
     return y;
 }
 
@@ -32,19 +26,13 @@ Tensor binary_raw(BinaryOp op, const Tensor& a, const Tensor& b, const Shape& ou
 Tensor sum_to(const Tensor& g, const Shape& shape) {
     if (g.shape() == shape) return g;
     Tensor r = Tensor::empty(shape, g.dtype(), g.device());
-    dispatch_float(g.dtype(), "sum_to", [&](auto tag) {
-        using T = decltype(tag);
-        kernels::sum_to_shape_cpu<T>(g.data<T>(), g.shape(), r.data<T>(), shape);
-    });
+    kernels::sum_to_shape(g, r);
     return r;
 }
 
 Tensor unary_raw(UnaryOp op, const Tensor& x, double p0, double p1) {
     Tensor y = Tensor::empty(x.shape(), x.dtype(), x.device());
-    dispatch_float(x.dtype(), "unary op", [&](auto tag) {
-        using T = decltype(tag);
-        kernels::unary_fwd_cpu<T>(op, x.data<T>(), y.data<T>(), x.numel(), p0, p1);
-    });
+    kernels::unary_fwd(op, x, y, p0, p1);
     return y;
 }
 
@@ -99,12 +87,7 @@ Tensor unary(const char* name, UnaryOp op, const Tensor& x, double p0 = 0, doubl
     return autograd::record(
         name, y, {x}, [op, p0, p1, xd, yd](const Tensor& dy, autograd::Grads& g) {
             Tensor dx = Tensor::empty(dy.shape(), dy.dtype(), dy.device());
-            dispatch_float(dy.dtype(), "unary op backward", [&](auto tag) {
-                using T = decltype(tag);
-                kernels::unary_bwd_cpu<T>(op, xd.defined() ? xd.data<T>() : nullptr,
-                                          yd.defined() ? yd.data<T>() : nullptr, dy.data<T>(),
-                                          dx.data<T>(), dy.numel(), p0, p1);
-            });
+            kernels::unary_bwd(op, xd, yd, dy, dx, p0, p1);
             g.add(0, dx);
         });
 }

@@ -23,7 +23,6 @@ struct NllLayout {
 NllLayout nll_layout(const Tensor& logp, const Tensor& target) {
     detail::check_float_input("nll_loss", "logp", logp);
     G2L_CHECK(target.defined(), "nll_loss: target is undefined");
-    require_cpu("nll_loss", {&target});
     G2L_CHECK(target.dtype() == DType::I32, "nll_loss: target must be i32 class ids, got ",
               target.desc());
     NllLayout l;
@@ -39,7 +38,9 @@ NllLayout nll_layout(const Tensor& logp, const Tensor& target) {
                   " ([B, K, N]) needs target [B, N] = [", l.B, ", ", l.N, "], got ", target.desc());
     }
     G2L_CHECK(l.B * l.N > 0, "nll_loss: no elements to average (logp ", logp.desc(), ")");
-    const int32_t* t = target.data<int32_t>();
+    // The ids are checked on the host (a copy when the target lives on another device).
+    const Tensor th = target.device().is_cpu() ? target : target.to(Device::cpu());
+    const int32_t* t = th.data<int32_t>();
     for (int64_t i = 0; i < l.B * l.N; ++i) {
         if (t[i] >= 0 && t[i] < l.K) continue;
         const std::string where =
@@ -53,22 +54,14 @@ NllLayout nll_layout(const Tensor& logp, const Tensor& target) {
 // Per-element Huber loss (before the mean); both inputs get gradients.
 Tensor smooth_l1_elems(const Tensor& a, const Tensor& b, double beta) {
     Tensor y = Tensor::empty(a.shape(), a.dtype(), a.device());
-    dispatch_float(a.dtype(), "smooth_l1_loss", [&](auto tag) {
-        using T = decltype(tag);
-        kernels::smooth_l1_fwd_cpu<T>(a.data<T>(), b.data<T>(), y.data<T>(), a.numel(), beta);
-    });
+    kernels::smooth_l1_fwd(a, b, y, beta);
     return autograd::record(
         "smooth_l1_loss", y, {a, b},
         [beta, ad = a.detach(), bd = b.detach()](const Tensor& dy, autograd::Grads& g) {
             Tensor da, db;
             if (g.needs(0)) da = Tensor::empty(dy.shape(), dy.dtype(), dy.device());
             if (g.needs(1)) db = Tensor::empty(dy.shape(), dy.dtype(), dy.device());
-            dispatch_float(dy.dtype(), "smooth_l1_loss backward", [&](auto tag) {
-                using T = decltype(tag);
-                kernels::smooth_l1_bwd_cpu<T>(
-                    ad.data<T>(), bd.data<T>(), dy.data<T>(), da.defined() ? da.data<T>() : nullptr,
-                    db.defined() ? db.data<T>() : nullptr, dy.numel(), beta);
-            });
+            kernels::smooth_l1_bwd(ad, bd, dy, &da, &db, beta);
             if (da.defined()) g.add(0, da);
             if (db.defined()) g.add(1, db);
         });
@@ -88,32 +81,21 @@ void check_pair(const char* op, const Tensor& a, const Tensor& b) {
 Tensor nll_loss(const Tensor& logp, const Tensor& target, const Tensor& weight) {
     const NllLayout l = nll_layout(logp, target);
     if (weight.defined()) {
-        require_cpu("nll_loss", {&weight});
         G2L_CHECK(weight.dtype() == logp.dtype() && weight.shape() == Shape{l.K},
                   "nll_loss: weight must be ", dtype_name(logp.dtype()), " [K] = [", l.K, "], got ",
                   weight.desc());
     }
     double num = 0, den = 0;
-    dispatch_float(logp.dtype(), "nll_loss", [&](auto tag) {
-        using T = decltype(tag);
-        const T* w = weight.defined() ? weight.data<T>() : nullptr;
-        kernels::nll_fwd_cpu<T>(logp.data<T>(), target.data<int32_t>(), w, l.B, l.K, l.N, &num,
-                                &den);
-    });
+    kernels::nll_fwd(logp, target, weight, l.B, l.K, l.N, &num, &den);
     G2L_CHECK(den != 0 && std::isfinite(den), "nll_loss: total weight of the targets is ", den,
               " (the mean is undefined)");
-    Tensor y = Tensor::scalar(num / den, logp.dtype());
+    Tensor y = Tensor::scalar(num / den, logp.dtype()).to(logp.device());
     // target and weight are recorded too so that an in-place edit before backward is caught.
     auto backward = [l, den, target, weight, shape = logp.shape()](const Tensor& dy,
                                                                    autograd::Grads& g) {
         if (!g.needs(0)) return;  // weight gets no gradient; target is i32
         Tensor dlogp = Tensor::empty({l.B, l.K, l.N}, dy.dtype(), dy.device());
-        dispatch_float(dy.dtype(), "nll_loss backward", [&](auto tag) {
-            using T = decltype(tag);
-            const T* w = weight.defined() ? weight.data<T>() : nullptr;
-            kernels::nll_bwd_cpu<T>(target.data<int32_t>(), w, l.B, l.K, l.N,
-                                    dy.item<double>() / den, dlogp.data<T>());
-        });
+        kernels::nll_bwd(target, weight, l.B, l.K, l.N, dy.item<double>() / den, dlogp);
         // [M, K] inputs were handled as [M, K, 1]: same memory, so a reshape view suffices.
         g.add(0, dlogp.reshape(shape));
     };

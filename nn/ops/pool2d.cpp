@@ -15,7 +15,6 @@ namespace {
 kernels::Pool2dGeom pool2d_geom(const char* op, const Tensor& x, std::array<int64_t, 2> kernel,
                                 std::array<int64_t, 2> stride, std::array<int64_t, 2> padding) {
     require_rank(op, "x", x, 4, "[B, C, H, W]");
-    require_cpu(op, {&x});
     G2L_CHECK(x.numel() > 0, op, ": empty input x ", x.shape());
     G2L_CHECK(kernel[0] >= 1 && kernel[1] >= 1, op, ": kernel must be >= 1, got (", kernel[0],
               ", ", kernel[1], ")");
@@ -43,17 +42,11 @@ kernels::Pool2dGeom pool2d_geom(const char* op, const Tensor& x, std::array<int6
 Tensor avg_pool_impl(const char* op, const Tensor& x, const kernels::Pool2dGeom& g,
                      bool count_include_pad) {
     Tensor y = Tensor::empty({g.B, g.C, g.Ho, g.Wo}, x.dtype(), x.device());
-    dispatch_float(x.dtype(), op, [&](auto tag) {
-        using T = decltype(tag);
-        kernels::avg_pool2d_fwd_cpu<T>(x.data<T>(), y.data<T>(), g, count_include_pad);
-    });
+    kernels::avg_pool2d_fwd(x, y, g, count_include_pad);
     return autograd::record(op, y, {x}, [g, count_include_pad](const Tensor& dy,
                                                                autograd::Grads& gr) {
         Tensor dx = Tensor::empty({g.B, g.C, g.H, g.W}, dy.dtype(), dy.device());
-        dispatch_float(dy.dtype(), "avg_pool2d backward", [&](auto tag) {
-            using T = decltype(tag);
-            kernels::avg_pool2d_bwd_cpu<T>(dy.data<T>(), dx.data<T>(), g, count_include_pad);
-        });
+        kernels::avg_pool2d_bwd(dy, dx, g, count_include_pad);
         gr.add(0, dx);
     });
 }
@@ -65,17 +58,11 @@ Tensor max_pool2d(const Tensor& x, std::array<int64_t, 2> kernel, std::array<int
     const kernels::Pool2dGeom g = pool2d_geom("max_pool2d", x, kernel, stride, padding);
     Tensor y = Tensor::empty({g.B, g.C, g.Ho, g.Wo}, x.dtype(), x.device());
     Tensor arg = Tensor::empty({g.B, g.C, g.Ho, g.Wo}, DType::I32, x.device());
-    dispatch_float(x.dtype(), "max_pool2d", [&](auto tag) {
-        using T = decltype(tag);
-        kernels::max_pool2d_fwd_cpu<T>(x.data<T>(), y.data<T>(), arg.data<int32_t>(), g);
-    });
+    kernels::max_pool2d_fwd(x, y, arg, g);
     return autograd::record("max_pool2d", y, {x}, [arg, g](const Tensor& dy,
                                                            autograd::Grads& gr) {
         Tensor dx = Tensor::empty({g.B, g.C, g.H, g.W}, dy.dtype(), dy.device());
-        dispatch_float(dy.dtype(), "max_pool2d backward", [&](auto tag) {
-            using T = decltype(tag);
-            kernels::max_pool2d_bwd_cpu<T>(dy.data<T>(), arg.data<int32_t>(), dx.data<T>(), g);
-        });
+        kernels::max_pool2d_bwd(dy, arg, dx, g);
         gr.add(0, dx);
     });
 }

@@ -4,7 +4,6 @@
 #include <cmath>
 
 #include "core/autograd.h"
-#include "core/dispatch.h"
 #include "kernels/reduce.h"
 #include "nn/ops/dim_utils.h"
 #include "nn/ops/elementwise.h"
@@ -27,18 +26,11 @@ Shape reduced_shape(const Shape& s, int64_t d, bool keepdim) {
 Tensor sum_impl(const char* op, const Tensor& x, const detail::DimSplit& p, const Shape& out_shape,
                 double scale) {
     Tensor y = Tensor::empty(out_shape, x.dtype(), x.device());
-    dispatch_float(x.dtype(), op, [&](auto tag) {
-        using T = decltype(tag);
-        kernels::sum_dim_cpu<T>(x.data<T>(), y.data<T>(), p.outer, p.D, p.inner, scale);
-    });
+    kernels::sum_dim(x, y, p.outer, p.D, p.inner, scale);
     return autograd::record(op, y, {x},
                             [p, scale, xs = x.shape()](const Tensor& dy, autograd::Grads& g) {
                                 Tensor dx = Tensor::empty(xs, dy.dtype(), dy.device());
-                                dispatch_float(dy.dtype(), "sum backward", [&](auto tag) {
-                                    using T = decltype(tag);
-                                    kernels::broadcast_dim_cpu<T>(dy.data<T>(), dx.data<T>(),
-                                                                  p.outer, p.D, p.inner, scale);
-                                });
+                                kernels::broadcast_dim(dy, dx, p.outer, p.D, p.inner, scale);
                                 g.add(0, dx);
                             });
 }
@@ -80,19 +72,11 @@ MaxResult max(const Tensor& x, int64_t dim, bool keepdim) {
     const Shape out_shape = reduced_shape(x.shape(), d, keepdim);
     Tensor y = Tensor::empty(out_shape, x.dtype(), x.device());
     Tensor arg = Tensor::empty(out_shape, DType::I32, x.device());
-    dispatch_float(x.dtype(), "max", [&](auto tag) {
-        using T = decltype(tag);
-        kernels::max_dim_fwd_cpu<T>(x.data<T>(), y.data<T>(), arg.data<int32_t>(), p.outer, p.D,
-                                    p.inner);
-    });
+    kernels::max_dim_fwd(x, y, arg, p.outer, p.D, p.inner);
     y = autograd::record("max", y, {x},
                          [p, arg, xs = x.shape()](const Tensor& dy, autograd::Grads& g) {
                              Tensor dx = Tensor::empty(xs, dy.dtype(), dy.device());
-                             dispatch_float(dy.dtype(), "max backward", [&](auto tag) {
-                                 using T = decltype(tag);
-                                 kernels::max_dim_bwd_cpu<T>(dy.data<T>(), arg.data<int32_t>(),
-                                                             dx.data<T>(), p.outer, p.D, p.inner);
-                             });
+                             kernels::max_dim_bwd(dy, arg, dx, p.outer, p.D, p.inner);
                              g.add(0, dx);
                          });
     return {y, arg};
@@ -104,19 +88,12 @@ Tensor norm(const Tensor& x, int64_t dim, bool keepdim, double eps) {
     const int64_t d = detail::wrap_dim("norm", dim, x.shape());
     const detail::DimSplit p = detail::split_at(x.shape(), d);
     Tensor y = Tensor::empty(reduced_shape(x.shape(), d, keepdim), x.dtype(), x.device());
-    dispatch_float(x.dtype(), "norm", [&](auto tag) {
-        using T = decltype(tag);
-        kernels::norm_dim_fwd_cpu<T>(x.data<T>(), y.data<T>(), p.outer, p.D, p.inner, eps);
-    });
+    kernels::norm_dim_fwd(x, y, p.outer, p.D, p.inner, eps);
     return autograd::record(
         "norm", y, {x},
         [p, xd = x.detach(), yd = y.detach()](const Tensor& dy, autograd::Grads& g) {
             Tensor dx = Tensor::empty(xd.shape(), dy.dtype(), dy.device());
-            dispatch_float(dy.dtype(), "norm backward", [&](auto tag) {
-                using T = decltype(tag);
-                kernels::norm_dim_bwd_cpu<T>(xd.data<T>(), yd.data<T>(), dy.data<T>(), dx.data<T>(),
-                                             p.outer, p.D, p.inner);
-            });
+            kernels::norm_dim_bwd(xd, yd, dy, dx, p.outer, p.D, p.inner);
             g.add(0, dx);
         });
 }

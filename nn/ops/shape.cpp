@@ -4,7 +4,6 @@
 #include <algorithm>
 
 #include "core/autograd.h"
-#include "core/dispatch.h"
 #include "kernels/reduce.h"
 #include "kernels/shape.h"
 #include "nn/ops/dim_utils.h"
@@ -13,20 +12,8 @@ namespace g2l::nn {
 
 namespace {
 
-// Like dispatch_float, plus i32: layout copies do not care about the element type.
-template <class F>
-void dispatch_any(DType dt, F&& f) {
-    switch (dt) {
-        case DType::F32: f(float{}); return;
-        case DType::F64: f(double{}); return;
-        case DType::I32: f(int32_t{}); return;
-    }
-    G2L_ASSERT(false);
-}
-
 void check_input(const char* op, const Tensor& x) {
     G2L_CHECK(x.defined(), op, ": input is undefined");
-    require_cpu(op, {&x});
 }
 
 // dim for inserting a new axis into a rank-r tensor: [-(r+1), r].
@@ -42,21 +29,14 @@ int64_t wrap_insert_dim(const char* op, int64_t dim, const Shape& s) {
 // dst_off (the common step of concat, slice and their gradients).
 void copy_slab(const Tensor& src, int64_t src_D, int64_t src_off, Tensor& dst, int64_t dst_D,
                int64_t dst_off, int64_t outer, int64_t len, int64_t inner) {
-    dispatch_any(src.dtype(), [&](auto tag) {
-        using T = decltype(tag);
-        kernels::copy_slab_cpu<T>(src.data<T>(), src_D, src_off, dst.data<T>(), dst_D, dst_off,
-                                  outer, len, inner);
-    });
+    kernels::copy_slab(src, src_D, src_off, dst, dst_D, dst_off, outer, len, inner);
 }
 
 Tensor permute_raw(const Tensor& x, const std::vector<int64_t>& perm) {
     Shape out(perm.size());
     for (size_t k = 0; k < perm.size(); ++k) out[k] = x.shape()[size_t(perm[k])];
     Tensor y = Tensor::empty(out, x.dtype(), x.device());
-    dispatch_any(x.dtype(), [&](auto tag) {
-        using T = decltype(tag);
-        kernels::permute_cpu<T>(x.data<T>(), x.shape(), perm, y.data<T>());
-    });
+    kernels::permute(x, perm, y);
     return y;
 }
 
@@ -154,10 +134,7 @@ Tensor repeat(const Tensor& x, int64_t dim, int64_t n) {
         "repeat", y, {x}, [p, n, xs = x.shape()](const Tensor& dy, autograd::Grads& g) {
             // dy viewed as [outer, n, D * inner]: the gradient is the sum over the tiles.
             Tensor dx = Tensor::empty(xs, dy.dtype(), dy.device());
-            dispatch_float(dy.dtype(), "repeat backward", [&](auto tag) {
-                using T = decltype(tag);
-                kernels::sum_dim_cpu<T>(dy.data<T>(), dx.data<T>(), p.outer, n, p.D * p.inner);
-            });
+            kernels::sum_dim(dy, dx, p.outer, n, p.D * p.inner);
             g.add(0, dx);
         });
 }
@@ -194,32 +171,25 @@ Tensor index_select(const Tensor& x, int64_t dim, const Tensor& idx) {
     check_input("index_select", x);
     const int64_t d = detail::wrap_dim("index_select", dim, x.shape());
     G2L_CHECK(idx.defined(), "index_select: idx is undefined");
-    require_cpu("index_select", {&idx});
     G2L_CHECK(idx.dtype() == DType::I32 && idx.dim() == 1,
               "index_select: idx must be i32 [L], got ", idx.desc());
     const detail::DimSplit p = detail::split_at(x.shape(), d);
     const int64_t L = idx.numel();
-    const int32_t* pi = idx.data<int32_t>();
+    // The indices are checked on the host (a copy when idx lives on another device).
+    const Tensor ih = idx.device().is_cpu() ? idx : idx.to(Device::cpu());
+    const int32_t* pi = ih.data<int32_t>();
     for (int64_t l = 0; l < L; ++l)
         G2L_CHECK(pi[l] >= 0 && pi[l] < p.D, "index_select: idx[", l, "] = ", pi[l],
                   " is out of range [0, ", p.D, ") for dim ", dim, " of ", x.desc());
     Shape out_shape = x.shape();
     out_shape[size_t(d)] = L;
     Tensor y = Tensor::empty(out_shape, x.dtype(), x.device());
-    dispatch_any(x.dtype(), [&](auto tag) {
-        using T = decltype(tag);
-        kernels::index_select_fwd_cpu<T>(x.data<T>(), pi, L, y.data<T>(), p.outer, p.D, p.inner);
-    });
+    kernels::index_select_fwd(x, idx, y, p.outer, p.D, p.inner);
     return autograd::record("index_select", y, {x, idx},
                             [p, L, idx, xs = x.shape()](const Tensor& dy, autograd::Grads& g) {
                                 if (!g.needs(0)) return;
                                 Tensor dx = Tensor::empty(xs, dy.dtype(), dy.device());
-                                dispatch_float(dy.dtype(), "index_select backward", [&](auto tag) {
-                                    using T = decltype(tag);
-                                    kernels::index_select_bwd_cpu<T>(
-                                        dy.data<T>(), idx.data<int32_t>(), L, dx.data<T>(), p.outer,
-                                        p.D, p.inner);
-                                });
+                                kernels::index_select_bwd(dy, idx, dx, p.outer, p.D, p.inner);
                                 g.add(0, dx);
                             });
 }

@@ -2,7 +2,6 @@
 #include "nn/ops/softmax.h"
 
 #include "core/autograd.h"
-#include "core/dispatch.h"
 #include "kernels/softmax.h"
 #include "nn/ops/dim_utils.h"
 
@@ -18,18 +17,11 @@ Tensor softmax_impl(const char* op, const Tensor& x, int64_t dim, bool log) {
     G2L_CHECK(x.shape()[size_t(d)] > 0, op, ": dim ", dim, " of ", x.desc(), " is empty");
     const detail::DimSplit p = detail::split_at(x.shape(), d);
     Tensor y = Tensor::empty(x.shape(), x.dtype(), x.device());
-    dispatch_float(x.dtype(), op, [&](auto tag) {
-        using T = decltype(tag);
-        kernels::softmax_fwd_cpu<T>(x.data<T>(), y.data<T>(), p.outer, p.D, p.inner, log);
-    });
+    kernels::softmax_fwd(x, y, p.outer, p.D, p.inner, log);
     return autograd::record(
         op, y, {x}, [p, log, yd = y.detach()](const Tensor& dy, autograd::Grads& g) {
             Tensor dx = Tensor::empty(dy.shape(), dy.dtype(), dy.device());
-            dispatch_float(dy.dtype(), "softmax backward", [&](auto tag) {
-                using T = decltype(tag);
-                kernels::softmax_bwd_cpu<T>(yd.data<T>(), dy.data<T>(), dx.data<T>(), p.outer, p.D,
-                                            p.inner, log);
-            });
+            kernels::softmax_bwd(yd, dy, dx, p.outer, p.D, p.inner, log);
             g.add(0, dx);
         });
 }

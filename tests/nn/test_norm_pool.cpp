@@ -6,7 +6,7 @@
 
 #include "core/rng.h"
 #include "gradcheck.h"
-#include "nn/ops/norm.h"
+#include "nn/ops/batch_norm.h"
 #include "nn/ops/pool_points.h"
 
 using namespace g2l;

@@ -448,6 +448,39 @@ TEST_CASE("samples: bad config values and inputs throw naming the value", "[samp
     const SampleMaker both(SampleConfig{}, models, kClasses);
     REQUIRE_THROWS_WITH(SyntheticSource(sc, scene_models(ds), both, 0),
                         Contains("frames must be > 0, got 0"));
+    REQUIRE_THROWS_WITH(SyntheticSource(sc, scene_models(ds), both, 4, 1, 1.5),
+                        Contains("min_visib_fract must be in [0, 1], got 1.5"));
+}
+
+TEST_CASE("synthetic samples: instances less visible than min_visib_fract give no sample",
+          "[samples]") {
+    const data::BopDataset ds = open_mini();
+    const SampleMaker maker(SampleConfig{}, models_of(ds), kClasses);
+    data::SceneConfig sc = clean_scene();
+    sc.targets_min = sc.targets_max = 2;
+    sc.separation = 0;  // let the two objects overlap: partial visibility is common
+    SyntheticSource all(sc, scene_models(ds), maker, 40, 1, 0.0);
+    SyntheticSource strict(sc, scene_models(ds), maker, 40, 1, 0.9);
+    int kept_all = 0, kept_strict = 0, partly_hidden = 0;
+    for (int64_t i = 0; i < all.size(); ++i) {
+        Rng r1(i), r2(i);
+        PoseSample a, b;
+        const bool ok_a = all.get(i, r1, &a);
+        const bool ok_b = strict.get(i, r2, &b);
+        kept_all += ok_a;
+        kept_strict += ok_b;
+        const int k = all.instance_of(i);
+        if (k < 0) continue;
+        const double v = all.frame(all.frame_of(i)).instances[size_t(k)].visib_fract;
+        INFO("index " << i << " visib_fract " << v);
+        if (ok_b) REQUIRE(v >= 0.9);  // kept only when visible enough
+        if (ok_a && v < 0.9) {
+            ++partly_hidden;
+            REQUIRE_FALSE(ok_b);
+        }
+    }
+    REQUIRE(partly_hidden > 0);  // the scene did produce occluded instances
+    REQUIRE(kept_strict == kept_all - partly_hidden);
 }
 
 TEST_CASE("synthetic noise-free samples: labels agree with the rendered instance mask, "

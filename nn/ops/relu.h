@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// Differentiable activations.
+// relu (kernels/relu.h).
 #pragma once
 
 #include "core/tensor.h"

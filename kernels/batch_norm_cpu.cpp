@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-#include "kernels/batchnorm.h"
+#include "kernels/batch_norm.h"
 
 namespace g2l::kernels {
 

@@ -2,7 +2,7 @@
 #include <catch2/catch.hpp>
 
 #include "gradcheck.h"
-#include "nn/ops/activation.h"
+#include "nn/ops/relu.h"
 
 using namespace g2l;
 

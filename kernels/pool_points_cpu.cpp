@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: MIT
-#include "kernels/max_points.h"
+#include "kernels/pool_points.h"
 
 namespace g2l::kernels {
 
 template <class T>
-void max_points_fwd_cpu(const T* x, int64_t R, int64_t N, T* y, int32_t* arg) {
+void max_pool_points_fwd_cpu(const T* x, int64_t R, int64_t N, T* y, int32_t* arg) {
 #pragma omp parallel for schedule(static) if (R * N > 32768)
     for (int64_t r = 0; r < R; ++r) {
         const T* row = x + r * N;
@@ -19,15 +19,15 @@ void max_points_fwd_cpu(const T* x, int64_t R, int64_t N, T* y, int32_t* arg) {
 }
 
 template <class T>
-void max_points_bwd_cpu(const T* dy, const int32_t* arg, int64_t R, int64_t N, T* dx) {
+void max_pool_points_bwd_cpu(const T* dy, const int32_t* arg, int64_t R, int64_t N, T* dx) {
 #pragma omp parallel for schedule(static) if (R > 4096)
     for (int64_t r = 0; r < R; ++r) dx[r * N + arg[r]] += dy[r];
 }
 
-template void max_points_fwd_cpu<float>(const float*, int64_t, int64_t, float*, int32_t*);
-template void max_points_fwd_cpu<double>(const double*, int64_t, int64_t, double*, int32_t*);
-template void max_points_bwd_cpu<float>(const float*, const int32_t*, int64_t, int64_t, float*);
-template void max_points_bwd_cpu<double>(const double*, const int32_t*, int64_t, int64_t,
+template void max_pool_points_fwd_cpu<float>(const float*, int64_t, int64_t, float*, int32_t*);
+template void max_pool_points_fwd_cpu<double>(const double*, int64_t, int64_t, double*, int32_t*);
+template void max_pool_points_bwd_cpu<float>(const float*, const int32_t*, int64_t, int64_t, float*);
+template void max_pool_points_bwd_cpu<double>(const double*, const int32_t*, int64_t, int64_t,
                                          double*);
 
 }  // namespace g2l::kernels

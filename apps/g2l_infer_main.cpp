@@ -73,7 +73,12 @@ int main(int argc, char** argv) {
     app.add_option("--model,--checkpoint", model, "inference export or training checkpoint")
         ->capture_default_str();
     app.add_option("--depth", depth_path, "16-bit depth PNG (BOP: depth/<id>.png)")->required();
-    app.add_option("--rgb", rgb_path, "RGB image (only drawn on with --vis)");
+    app.add_option("--rgb", rgb_path, "RGB image (the detector's input with --detector; drawn on "
+                                      "with --vis)");
+    std::string detector_path;
+    app.add_option("--detector", detector_path,
+                   "a 2D detector export (<run_dir>/detector.g2l of a \"task\": \"detector\" "
+                   "training): finds the boxes on the --rgb image instead of --boxes / --box");
     app.add_option("--camera", camera_path,
                    "camera JSON: BOP camera.json, a scene_camera.json entry, or a whole "
                    "scene_camera.json with --image-id")
@@ -94,8 +99,13 @@ int main(int argc, char** argv) {
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_infer"); rc >= 0) return rc;
-    if (boxes_path.empty() == box_args.empty()) {
-        std::fprintf(stderr, "g2l_infer: give exactly one of --boxes and --box (see g2l_infer --help)\n");
+    if (int(!boxes_path.empty()) + int(!box_args.empty()) + int(!detector_path.empty()) != 1) {
+        std::fprintf(stderr, "g2l_infer: give exactly one of --boxes, --box and --detector (see "
+                             "g2l_infer --help)\n");
+        return g2l::cli::kUsageError;
+    }
+    if (!detector_path.empty() && rgb_path.empty()) {
+        std::fprintf(stderr, "g2l_infer: --detector needs the --rgb image\n");
         return g2l::cli::kUsageError;
     }
     try {
@@ -132,6 +142,8 @@ int main(int argc, char** argv) {
         g2l::EstimatorOptions opt;
         opt.threads = threads;
         opt.models_info = models_info;
+        opt.detector = detector_path;
+        if (!detector_path.empty() && app.count("--min-score")) opt.min_detection_score = min_score;
         g2l::PoseEstimator est(model, opt);
         g2l::FrameView f;
         f.width = w;
@@ -140,6 +152,7 @@ int main(int argc, char** argv) {
         f.depth_scale = depth_scale;
         f.K = K;
         if (!rgb.data.empty()) f.rgb = rgb.data.data();
+        if (!detector_path.empty()) boxes = est.detect(f);
         const std::vector<g2l::ObjectPose> poses = est.estimate(f, boxes);
 
         json out;

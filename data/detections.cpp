@@ -25,7 +25,8 @@ std::vector<Detection> parse_bop_detections(const std::string& text, const std::
                   e.type_name());
         for (auto it = e.begin(); it != e.end(); ++it) {
             static const char* known[] = {"scene_id", "image_id", "im_id", "category_id",
-                                          "obj_id", "bbox", "score", "time", "segmentation"};
+                                          "obj_id", "bbox", "score", "time", "segmentation",
+                                          "peak"};
             bool ok = false;
             for (const char* k : known) ok |= it.key() == k;
             G2L_CHECK(ok, "detections '", what, "' entry ", i, ": unknown key '", it.key(), "'");
@@ -63,6 +64,15 @@ std::vector<Detection> parse_bop_detections(const std::string& text, const std::
                   ": bbox width and height must be >= 0, got ", b.dump());
         if (e.contains("score")) d.score = number(e.at("score"), "score");
         if (e.contains("time")) d.time = number(e.at("time"), "time");
+        if (e.contains("peak")) {  // g2l's extension: the heat-map peak pixel [x, y]
+            const json& p = e.at("peak");
+            G2L_CHECK(p.is_array() && p.size() == 2, "detections '", what, "' entry ", i,
+                      ": 'peak' must be [x, y], got ", p.dump());
+            d.peak_x = number(p[0], "peak");
+            d.peak_y = number(p[1], "peak");
+            G2L_CHECK(d.peak_x >= 0 && d.peak_y >= 0, "detections '", what, "' entry ", i,
+                      ": 'peak' must be >= 0, got ", p.dump());
+        }
         out.push_back(d);
     }
     return out;

@@ -16,6 +16,9 @@ struct Detection {
     double x = 0, y = 0, w = 0, h = 0; ///< pixels
     double score = 1;
     double time = -1;                  ///< seconds the detector took for the image (-1: unknown)
+    /// Pixel of the detector's heat-map peak (g2l's detector; key "peak": [x, y] in a file);
+    /// -1 when unknown: the sphere centre then comes from the box (geom::box_centre).
+    double peak_x = -1, peak_y = -1;
 };
 
 /// Parses a BOP detection file. Throws g2l::Error naming the file, the entry index and the key

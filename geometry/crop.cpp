@@ -152,4 +152,38 @@ bool box_centre(const float* depth, int w, int h, const Intrinsics& K, const Box
     return false;
 }
 
+bool peak_centre(const float* depth, int w, int h, const Intrinsics& K, const Box2i& box_in,
+                 double u, double v, Eigen::Vector3d* centre) {
+    G2L_CHECK(depth != nullptr && w > 0 && h > 0, "peak_centre: no depth image (", w, " x ", h, ")");
+    G2L_CHECK(std::isfinite(K.fx) && std::isfinite(K.fy) && K.fx > 0 && K.fy > 0 &&
+                  std::isfinite(K.cx) && std::isfinite(K.cy),
+              "peak_centre: intrinsics fx ", K.fx, ", fy ", K.fy, ", cx ", K.cx, ", cy ", K.cy,
+              " (focal lengths must be finite and > 0)");
+    const Box2i box = clip_box(box_in, w, h);
+    if (box.empty() || !std::isfinite(u) || !std::isfinite(v)) return false;
+    auto valid = [](float z) { return z > 0 && std::isfinite(z); };
+    const int pu = std::clamp(int(std::floor(u)), box.x, box.x + box.w - 1);
+    const int pv = std::clamp(int(std::floor(v)), box.y, box.y + box.h - 1);
+    const int rmax = std::max(box.w, box.h);
+    for (int r = 0; r <= rmax; ++r) {
+        double best = 1e30;
+        float bz = 0;
+        for (int y = pv - r; y <= pv + r; ++y) {
+            if (y < box.y || y >= box.y + box.h) continue;
+            for (int x = pu - r; x <= pu + r; ++x) {
+                if (x < box.x || x >= box.x + box.w) continue;
+                if (std::max(std::abs(x - pu), std::abs(y - pv)) != r) continue;  // the ring only
+                const float z = depth[size_t(y) * size_t(w) + size_t(x)];
+                const double d2 = double(x - pu) * (x - pu) + double(y - pv) * (y - pv);
+                if (valid(z) && d2 < best) best = d2, bz = z;
+            }
+        }
+        if (best < 1e30) {
+            *centre = {(u - K.cx) * bz / K.fx, (v - K.cy) * bz / K.fy, double(bz)};
+            return true;
+        }
+    }
+    return false;
+}
+
 }  // namespace g2l::geom

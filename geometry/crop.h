@@ -59,4 +59,12 @@ Box2i clip_box(const Box2i& box, int width, int height);
 bool box_centre(const float* depth_mm, int width, int height, const Intrinsics& K,
                 const Box2i& box, Eigen::Vector3d* centre);
 
+/// The sphere centre from a detector's heat-map peak (spec §2): the peak pixel (u, v) lifted
+/// with the depth of the nearest valid pixel inside `box` (the peak's own when valid; else
+/// searched in square rings of growing size, the smallest Euclidean distance first, ties in
+/// row-major order: deterministic). Returns false when the box (clipped) is empty, the peak is
+/// not finite, or the box has no valid depth. Throws as box_centre.
+bool peak_centre(const float* depth_mm, int width, int height, const Intrinsics& K,
+                 const Box2i& box, double u, double v, Eigen::Vector3d* centre);
+
 }  // namespace g2l::geom

@@ -12,6 +12,7 @@
 #include "geometry/camera.h"
 #include "geometry/crop.h"
 #include "geometry/model_info.h"
+#include "nn/models/detector.h"
 #include "nn/models/g2l_io.h"
 #include "nn/models/g2l_engine.h"
 #include "nn/models/g2l_pose.h"
@@ -49,6 +50,7 @@ struct PoseEstimator::Impl {
     EstimatorOptions options;
     int crop_points = 0, object_points = 1;
     std::unique_ptr<nn::PoseEngine> engine;  // the compiled networks (fast path)
+    std::unique_ptr<nn::LoadedDetector> detector;  // EstimatorOptions::detector
     std::mutex mutex;
     // Per-frame buffers, reused between frames.
     std::vector<float> depth_mm;  // the frame's depth in mm
@@ -68,7 +70,13 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
               options.crop_points);
     G2L_CHECK(options.object_points == -1 || options.object_points >= 1,
               "PoseEstimator: object_points must be -1 or >= 1, got ", options.object_points);
+    G2L_CHECK(std::isfinite(options.min_detection_score) && options.min_detection_score >= 0 &&
+                  options.min_detection_score <= 1,
+              "PoseEstimator: min_detection_score must be in [0, 1], got ",
+              options.min_detection_score);
     m.model = nn::load_model(model_path);
+    if (!options.detector.empty())
+        m.detector = std::make_unique<nn::LoadedDetector>(nn::load_detector(options.detector));
     m.engine = std::make_unique<nn::PoseEngine>(*m.model.net);
     m.crop_points = options.crop_points >= 0 ? options.crop_points : m.model.points;
     m.object_points = options.object_points >= 1 ? options.object_points : m.model.seg_points;
@@ -168,7 +176,11 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
             continue;
         }
         Eigen::Vector3d centre;
-        if (!geom::box_centre(depth, f.width, f.height, K, box, &centre)) {
+        const bool have_centre =
+            b.peak_x >= 0 && b.peak_y >= 0
+                ? geom::peak_centre(depth, f.width, f.height, K, box, b.peak_x, b.peak_y, &centre)
+                : geom::box_centre(depth, f.width, f.height, K, box, &centre);
+        if (!have_centre) {
             p.status = PoseStatus::no_depth;
             p.timings.crop_ms = p.timings.total_ms = ms_since(t0);
             continue;
@@ -203,6 +215,35 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
         p.timings.total_ms = p.timings.crop_ms + est.ms_seg + est.ms_t + est.ms_rot;
     }
     return out;
+}
+
+std::vector<ObjectBox> PoseEstimator::detect(const FrameView& f) {
+    Impl& m = *impl_;
+    G2L_CHECK(m.detector, "PoseEstimator::detect: no detector (set EstimatorOptions::detector to "
+                          "a detector export)");
+    G2L_CHECK(f.rgb != nullptr, "PoseEstimator::detect: the frame has no RGB image "
+                                "(FrameView::rgb)");
+    G2L_CHECK(f.width > 0 && f.height > 0, "PoseEstimator::detect: frame size must be positive, "
+                                           "got ", f.width, " x ", f.height);
+    std::lock_guard<std::mutex> lock(m.mutex);
+    if (m.options.threads > 0) set_num_threads(m.options.threads);
+    const auto dets = nn::detect(*m.detector->net, m.detector->downscale, f.rgb, f.width,
+                                 f.height, float(m.options.min_detection_score), 1);
+    std::vector<ObjectBox> out;  // detect() returns them best first, one per class
+    for (const nn::Detection& d : dets) {
+        ObjectBox b;
+        b.obj_id = m.detector->object_ids[size_t(d.cls)];
+        b.x = int(std::lround(d.x)), b.y = int(std::lround(d.y));
+        b.w = int(std::lround(d.w)), b.h = int(std::lround(d.h));
+        b.score = d.score;
+        b.peak_x = d.peak_x, b.peak_y = d.peak_y;
+        out.push_back(b);
+    }
+    return out;
+}
+
+std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& frame) {
+    return estimate(frame, detect(frame));
 }
 
 }  // namespace g2l

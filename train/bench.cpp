@@ -13,6 +13,7 @@
 #include "core/autograd.h"
 #include "core/rng.h"
 #include "kernels/gemm.h"
+#include "nn/models/detector.h"
 #include "nn/models/g2l_net.h"
 #include "nn/ops/concat_conv.h"
 #include "nn/ops/linear.h"
@@ -217,6 +218,32 @@ std::vector<BenchFigure> bench_pose(const std::string& prefix, int reps, double 
             {prefix + "_seg", st[0][st[0].size() / 2], "ms", "segmentation stage (median)"},
             {prefix + "_t", st[1][st[1].size() / 2], "ms", "translation stage (median)"},
             {prefix + "_rot", st[2][st[2].size() / 2], "ms", "rotation stage: blocks A, B, C + Kabsch (median)"}};
+}
+
+std::vector<BenchFigure> bench_detector(int reps, int width, int downscale) {
+    G2L_CHECK(reps >= 1, "bench_detector: reps must be >= 1");
+    nn::DetectorConfig dc;
+    dc.num_classes = 8;
+    dc.width = width;
+    nn::Detector net(dc);
+    net.eval();
+    Rng rng(5);
+    std::vector<uint8_t> rgb(size_t(640) * 480 * 3);
+    for (auto& v : rgb) v = uint8_t(rng.below(256));
+    std::vector<double> ms;
+    for (int r = 0; r < reps + 3; ++r) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const auto d = nn::detect(net, downscale, rgb.data(), 640, 480, 0.05f, 5);
+        const double dt =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        if (r >= 3) ms.push_back(dt);
+    }
+    std::sort(ms.begin(), ms.end());
+    const double p90 = ms[std::min(ms.size() - 1, size_t(std::ceil(0.9 * double(ms.size()))) - 1)];
+    const std::string what = "2D detector on a 640 x 480 frame (downscale " +
+                             std::to_string(downscale) + ", width " + std::to_string(width) +
+                             ", 8 classes), " + std::to_string(reps) + " runs";
+    return {{"detector_ms", ms[ms.size() / 2], "ms", what}, {"detector_ms_p90", p90, "ms", what}};
 }
 
 double peak_rss_mb() {

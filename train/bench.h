@@ -39,6 +39,12 @@ std::vector<BenchFigure> bench_training(int reps, double width, int batch, int p
 std::vector<BenchFigure> bench_pose(const std::string& prefix, int reps, double width,
                                     int crop_points, int object_points, bool engine = true);
 
+/// The 2D detector on a 640 x 480 RGB frame (nn::detect: input downscale, network, peak
+/// decoding) with the default architecture (8 classes, width 16, downscale 2; the weights do not
+/// change the time). Figures "detector_ms" (median), "detector_ms_p90" over `reps` runs after 3
+/// warm-up runs.
+std::vector<BenchFigure> bench_detector(int reps, int width = 16, int downscale = 2);
+
 /// Peak resident set size of this process so far (MB; getrusage).
 double peak_rss_mb();
 

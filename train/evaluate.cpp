@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <optional>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -152,6 +153,7 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
             const auto t0 = Clock::now();
             geom::Box2i box0 = inst.bbox_visib.empty() ? inst.bbox_obj : inst.bbox_visib;
             bool detected = true;
+            std::optional<std::pair<double, double>> det_peak;  // the detector's heat-map peak
             if (opt.detections) {
                 int scene_id = -1;
                 try {
@@ -167,6 +169,7 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                     box0 = {int(std::lround(d.x)), int(std::lround(d.y)), int(std::lround(d.w)),
                             int(std::lround(d.h))};
                     res.score = d.score;
+                    if (d.peak_x >= 0 && d.peak_y >= 0) det_peak = std::make_pair(d.peak_x, d.peak_y);
                 }
             }
             const geom::Box2i box = geom::clip_box(box0, w, h);
@@ -179,8 +182,11 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                 Eigen::Vector3d c;
                 if (opt.crop == "frustum") {
                     crop = pts;
-                } else if (opt.centre_from_mask ? sphere_centre(ds, f, inst, depth, w, h, box, &c)
-                                                : geom::box_centre(depth.data(), w, h, f.K, box, &c)) {
+                } else if (opt.centre_from_mask
+                               ? sphere_centre(ds, f, inst, depth, w, h, box, &c)
+                           : det_peak ? geom::peak_centre(depth.data(), w, h, f.K, box,
+                                                          det_peak->first, det_peak->second, &c)
+                                      : geom::box_centre(depth.data(), w, h, f.K, box, &c)) {
                     crop = geom::crop_points(opt.crop, pts, c, opt.radius_scale * om.info.diameter);
                 } else {
                     have = false;

@@ -32,6 +32,10 @@ int main(int argc, char** argv) {
     bool pose_only = false;
     app.add_option("--pose-reps", pose_reps, "timed batch-1 pose estimations per setting (0 = skip)")
         ->check(g2l::cli::at_least(0));
+    int det_reps = 30;
+    app.add_option("--detector-reps", det_reps, "timed 2D-detector runs on a 640 x 480 frame "
+                                                "(0 = skip)")
+        ->check(CLI::Range(0, 100000));
     app.add_flag("--pose-only", pose_only, "only the batch-1 pose figures (and peak RSS)");
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
@@ -51,6 +55,10 @@ int main(int argc, char** argv) {
                 const auto pg = g2l::train::bench_pose(std::string("graph_") + name, pr, 1.0, cp, op, false);
                 figs.insert(figs.end(), pg.begin(), pg.end());
             }
+        }
+        if (det_reps > 0) {
+            const auto df = g2l::train::bench_detector(quick ? 2 : det_reps);
+            figs.insert(figs.end(), df.begin(), df.end());
         }
         if (train_reps > 0 && !pose_only) {
             // The setting: paper architecture, batch 8, 1500 -> 1000 points.

@@ -14,6 +14,7 @@
 #include "data/draw.h"
 #include "geometry/metrics.h"
 #include "train/config.h"
+#include "train/detector_train.h"
 #include "train/evaluate.h"
 #include "train/model_io.h"
 
@@ -122,15 +123,24 @@ int main(int argc, char** argv) {
     int64_t max_instances = 0;
     double min_visib = 0.0;
     int crop_points = -1, object_points = -1;
-    app.add_option("--checkpoint", checkpoint, "a .g2l checkpoint written by g2l_train")->required();
+    std::string detector_path;
+    app.add_option("--checkpoint", checkpoint, "a .g2l checkpoint written by g2l_train (required "
+                                               "unless --detector is evaluated alone)");
+    app.add_option("--detector", detector_path,
+                   "a detector export (g2l_train with a \"task\": \"detector\" config writes "
+                   "<run_dir>/detector.g2l). Alone (no --checkpoint): evaluates the 2D detector on "
+                   "--root/--split (recall and precision at IoU 0.5, heat-map peak on the object); "
+                   "with --checkpoint and --boxes det: the full pipeline, detector included");
     app.add_option("--config", config, "evaluate on this config's data.val BOP sources");
     app.add_option("--set", sets, "config overrides (as g2l_train)");
     app.add_option("--root", root, "BOP dataset root (instead of --config)");
     app.add_option("--split", split, "BOP split with --root");
     std::string detections_path, bop_csv, instances_path, vis_dir;
-    app.add_option("--boxes", boxes, "2D boxes: gt (ground truth) or file (a BOP detection file "
-                                     "given with --detections)")
-        ->check(CLI::IsMember({"gt", "file"}));
+    app.add_option("--boxes", boxes, "2D boxes: gt (ground truth), file (a BOP detection file "
+                                     "given with --detections) or det (the --detector's best "
+                                     "box per object, its heat-map peak lifted with depth as the "
+                                     "sphere centre)")
+        ->check(CLI::IsMember({"gt", "file", "det"}));
     app.add_option("--detections", detections_path,
                    "BOP detection file (JSON array of {scene_id, image_id, category_id, bbox, score, "
                    "time}) for --boxes file");
@@ -163,6 +173,55 @@ int main(int argc, char** argv) {
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_eval"); rc >= 0) return rc;
+    if (checkpoint.empty() && detector_path.empty()) {
+        std::fprintf(stderr, "g2l_eval: give --checkpoint FILE (and/or --detector FILE; see "
+                             "g2l_eval --help)\n");
+        return g2l::cli::kUsageError;
+    }
+    if ((boxes == "det") != !detector_path.empty() && !checkpoint.empty()) {
+        std::fprintf(stderr, "g2l_eval: --boxes det needs --detector FILE, and --detector with "
+                             "--checkpoint needs --boxes det\n");
+        return g2l::cli::kUsageError;
+    }
+    if (checkpoint.empty()) {  // the detector alone
+        if (root.empty()) {
+            std::fprintf(stderr, "g2l_eval: --detector alone needs --root (and --split)\n");
+            return g2l::cli::kUsageError;
+        }
+        try {
+            const g2l::nn::LoadedDetector det = g2l::nn::load_detector(detector_path);
+            g2l::data::BopOptions o;
+            o.obj_ids = det.object_ids;
+            const g2l::data::BopDataset ds = g2l::data::open_bop(root, split, o);
+            const auto r = g2l::train::evaluate_detector(det, ds, min_visib > 0 ? min_visib : 0.1,
+                                                         0.3f, 0, true);
+            std::printf("detector %s on %s/%s (instances with visib_fract >= %.2f):\n%s",
+                        detector_path.c_str(), root.c_str(), split.c_str(),
+                        min_visib > 0 ? min_visib : 0.1,
+                        g2l::train::detector_eval_table(r).c_str());
+            if (!json_out.empty()) {
+                nlohmann::json j;
+                j["detector"] = detector_path;
+                j["dataset"] = root + "/" + split;
+                j["frames"] = r.frames;
+                j["ms_per_frame"] = r.ms_per_frame;
+                j["mean_recall"] = r.mean_recall;
+                j["mean_precision"] = r.mean_precision;
+                j["mean_peak_on_object"] = r.mean_peak_rate;
+                for (const auto& row : r.rows)
+                    j["objects"][std::to_string(row.obj_id)] = {
+                        {"instances", row.instances}, {"recall", row.recall()},
+                        {"precision", row.precision()}, {"peak_on_object", row.peak_rate()},
+                        {"detections", row.detections}};
+                std::ofstream f(json_out);
+                f << j.dump(2) << "\n";
+                G2L_CHECK(f.good(), "--json '", json_out, "': cannot write the file");
+            }
+            return 0;
+        } catch (const std::exception& e) {
+            return g2l::cli::report("g2l_eval", e, verbose);
+        }
+    }
     if ((boxes == "file") != !detections_path.empty()) {
         std::fprintf(stderr, "g2l_eval: --boxes file needs --detections FILE, and --detections "
                              "needs --boxes file\n");
@@ -208,6 +267,9 @@ int main(int argc, char** argv) {
                       "': cannot create the folder: ", ec.message());
         }
         g2l::train::LoadedModel m = g2l::train::load_model(checkpoint);
+        std::unique_ptr<g2l::nn::LoadedDetector> det;
+        if (boxes == "det")
+            det = std::make_unique<g2l::nn::LoadedDetector>(g2l::nn::load_detector(detector_path));
         std::vector<std::pair<std::string, g2l::data::BopDataset>> sets_to_eval;
         std::vector<double> set_min_visib;  // per set: --min-visib, else the source's
         std::vector<int> ids;
@@ -264,12 +326,19 @@ int main(int argc, char** argv) {
                                  sets_to_eval[i].first.c_str());
             }
             if (boxes == "file") eo.detections = &detections;
-            std::vector<g2l::train::InstanceResult> inst;
             const auto& ds = sets_to_eval[i].second;
+            std::vector<g2l::data::Detection> det_boxes;
+            if (boxes == "det") {  // the detector on every frame's RGB image, timed
+                det_boxes = g2l::train::run_detector_on(*det, ds);
+                eo.detections = &det_boxes;
+            }
+            std::vector<g2l::train::InstanceResult> inst;
             const auto r = g2l::train::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo,
                                                           &inst);
             std::printf("## %s (%s boxes, %s crop)\n\n%s\n", sets_to_eval[i].first.c_str(),
-                        boxes == "gt" ? "GT" : ("detection file " + detections_path).c_str(),
+                        boxes == "gt"    ? "GT"
+                        : boxes == "det" ? ("detector " + detector_path).c_str()
+                                         : ("detection file " + detections_path).c_str(),
                         m.crop.c_str(), g2l::train::report_markdown(r).c_str());
             write_outputs(ds, inst, csv_out.is_open() ? &csv_out : nullptr,
                           inst_out.is_open() ? &inst_out : nullptr, vis_dir,

@@ -8,6 +8,7 @@
 #include <cstdio>
 
 #include "train/config.h"
+#include "train/detector_train.h"
 #include "train/model_io.h"
 #include "train/trainer.h"
 
@@ -24,7 +25,9 @@ extern "C" void on_signal(int sig) {
 int main(int argc, char** argv) {
     CLI::App app{"g2l_train: trains G2L-Net (segmentation, translation and rotation networks) "
                  "from a JSON config. Writes the run directory: config.json, steps.jsonl, "
-                 "epochs.jsonl, last.g2l, best.g2l, epoch_<k>.g2l."};
+                 "epochs.jsonl, last.g2l, best.g2l, epoch_<k>.g2l. A config with \"task\": "
+                 "\"detector\" trains the 2D detector instead (run directory: config.json, "
+                 "steps.jsonl, last.g2l, detector.g2l)."};
     std::string config, resume;
     std::vector<std::string> sets;
     int64_t max_steps = 0;
@@ -66,6 +69,34 @@ int main(int argc, char** argv) {
     }
     try {
         const std::string cfg_path = config.empty() ? resume + "/config.json" : config;
+        std::signal(SIGINT, on_signal);
+        std::signal(SIGTERM, on_signal);
+        if (g2l::train::is_detector_config(cfg_path)) {  // "task": "detector"
+            const auto dcfg = g2l::train::load_detector_config(cfg_path, sets);
+            g2l::train::DetectorTrainOptions dopt;
+            dopt.resume_dir = resume;
+            dopt.max_steps = max_steps;
+            dopt.progress = !quiet;
+            dopt.force = force;
+            dopt.stop_flag = &g_stop;
+            const auto s = g2l::train::run_detector_training(dcfg, dopt);
+            if (s.interrupted) {
+                std::fprintf(stderr, "g2l_train: %s after step %lld: checkpoint written, continue "
+                                     "with --resume %s\n",
+                             g_signal == SIGINT ? "interrupted (SIGINT)" : "terminated (SIGTERM)",
+                             (long long)s.steps, s.run_dir.c_str());
+                return 128 + int(g_signal);
+            }
+            if (!quiet)
+                std::printf("g2l_train: detector %s after %lld steps, %.1f images/s; export %s/"
+                            "detector.g2l%s\n",
+                            s.stopped_early ? "stopped" : "finished", (long long)s.steps,
+                            s.images_per_s, s.run_dir.c_str(),
+                            s.evaluated ? g2l::cat("; validation mean recall@0.5 ",
+                                              100 * s.val.mean_recall, "%").c_str()
+                                        : "");
+            return 0;
+        }
         g2l::train::TrainConfig cfg = g2l::train::load_config(cfg_path, sets);
         g2l::train::TrainOptions opt;
         opt.resume_dir = resume;
@@ -73,8 +104,6 @@ int main(int argc, char** argv) {
         opt.progress = !quiet;
         opt.force = force;
         opt.stop_flag = &g_stop;
-        std::signal(SIGINT, on_signal);
-        std::signal(SIGTERM, on_signal);
         const auto s = g2l::train::run_training(cfg, opt);
         if (s.interrupted) {
             std::fprintf(stderr, "g2l_train: %s after step %lld: checkpoint written, continue with "

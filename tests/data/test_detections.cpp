@@ -29,6 +29,11 @@ TEST_CASE("BOP detection files: fields, defaults and aliases", "[data]") {
     CHECK(d[1].score == 1.0);
     CHECK(d[1].time == -1.0);
     CHECK(parse_bop_detections("[]", "mem").empty());
+    CHECK(d[0].peak_x == -1.0);  // no peak: the sphere centre comes from the box
+    const auto p = parse_bop_detections(R"([{"obj_id": 2, "bbox": [0, 0, 9, 9], "peak": [4.5, 3]}])",
+                                        "mem");
+    CHECK(p.at(0).peak_x == 4.5);
+    CHECK(p.at(0).peak_y == 3.0);
 }
 
 TEST_CASE("BOP detection files: malformed input names the file, entry and key", "[data]") {
@@ -53,6 +58,8 @@ TEST_CASE("BOP detection files: malformed input names the file, entry and key", 
     bad(R"([{"category_id": 1, "bbox": [1, 2, 3, 4]}, {"category_id": 1, "bbox": [1, 2, 3, 4], "scroe": 1}])",
         "entry 1: unknown key 'scroe'");
     bad(R"([{"category_id": 1, "image_id": 1, "im_id": 1, "bbox": [1, 2, 3, 4]}])", "both 'image_id' and 'im_id'");
+    bad(R"([{"category_id": 1, "bbox": [1, 2, 3, 4], "peak": [1]}])", "'peak' must be [x, y]");
+    bad(R"([{"category_id": 1, "bbox": [1, 2, 3, 4], "peak": [1, -2]}])", "'peak' must be >= 0");
     REQUIRE_THROWS_WITH(g2l::data::load_bop_detections("/nonexistent/dets.json"),
                         Contains("/nonexistent/dets.json") && Contains("cannot open"));
     const std::string dir = g2l::testing::temp_dir("dets");

@@ -122,3 +122,34 @@ TEST_CASE("clip_box and box_centre: boxes partly or wholly outside, depth holes"
     K.fx = 100;
     REQUIRE_THROWS_WITH(box_centre(nullptr, 10, 10, K, {0, 0, 10, 10}, &c), Contains("no depth"));
 }
+
+TEST_CASE("peak_centre: the peak lifted with the nearest valid depth in the box", "[geometry]") {
+    const int w = 10, h = 8;
+    std::vector<float> depth(size_t(w * h), 0.f);
+    const Intrinsics K{100, 100, 5, 4, w, h};
+    const Box2i box{2, 2, 6, 5};
+    Eigen::Vector3d c;
+    REQUIRE_FALSE(peak_centre(depth.data(), w, h, K, box, 4.5, 4.5, &c));  // no valid depth
+    depth[size_t(4 * w + 4)] = 800.f;  // the peak pixel itself
+    REQUIRE(peak_centre(depth.data(), w, h, K, box, 4.5, 4.5, &c));
+    REQUIRE(c.z() == Approx(800));
+    REQUIRE(c.x() == Approx((4.5 - 5) * 800 / 100));
+    REQUIRE(c.y() == Approx((4.5 - 4) * 800 / 100));
+    // A hole at the peak: the nearest valid pixel's depth (distance 1 beats the diagonal).
+    depth[size_t(4 * w + 4)] = 0.f;
+    depth[size_t(5 * w + 5)] = 700.f;  // diagonal, distance sqrt 2
+    depth[size_t(4 * w + 5)] = 900.f;  // right, distance 1
+    REQUIRE(peak_centre(depth.data(), w, h, K, box, 4.2, 4.7, &c));
+    REQUIRE(c.z() == Approx(900));
+    REQUIRE(c.x() == Approx((4.2 - 5) * 900 / 100));
+    // Valid depth outside the box is never used; NaN depth is invalid.
+    std::vector<float> out(size_t(w * h), 0.f);
+    out[0] = 500.f;
+    out[size_t(3 * w + 3)] = std::nanf("");
+    REQUIRE_FALSE(peak_centre(out.data(), w, h, K, box, 4.0, 4.0, &c));
+    REQUIRE_FALSE(peak_centre(depth.data(), w, h, K, Box2i{20, 20, 5, 5}, 4.0, 4.0, &c));
+    REQUIRE_FALSE(peak_centre(depth.data(), w, h, K, box, std::nan(""), 4.0, &c));
+    REQUIRE_THROWS_WITH(peak_centre(nullptr, w, h, K, box, 4, 4, &c), Catch::Contains("no depth image"));
+    REQUIRE_THROWS_WITH(peak_centre(depth.data(), w, h, Intrinsics{0, 100, 5, 4, w, h}, box, 4, 4, &c),
+                        Catch::Contains("focal lengths"));
+}

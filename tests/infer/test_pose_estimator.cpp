@@ -18,6 +18,7 @@
 #include "g2l/pose_estimator.h"
 #include "geometry/camera.h"
 #include "geometry/crop.h"
+#include "nn/models/detector.h"
 #include "nn/models/g2l_io.h"
 #include "nn/models/g2l_pose.h"
 #include "testing.h"
@@ -271,4 +272,54 @@ TEST_CASE("PoseEstimator: one estimator shared by two threads gives the sequenti
     REQUIRE(p1.size() == s1.size());
     for (size_t i = 0; i < s0.size(); ++i) CHECK(p0[i].R == s0[i].R);
     for (size_t i = 0; i < s1.size(); ++i) CHECK(p1[i].t == s1[i].t);
+}
+
+TEST_CASE("PoseEstimator: the detector gives boxes with peaks, and the whole pipeline runs",
+          "[infer][detector]") {
+    Fixture f = load_frame(0);
+    const g2l::data::Image rgb = f.ds.load_rgb(*f.frame);
+    REQUIRE(rgb.channels == 3);
+    // An untrained detector for the fixture's objects 8 and 14 (the plumbing, not accuracy).
+    const std::string dir = g2l::testing::temp_dir("infer_detector");
+    g2l::nn::DetectorConfig dc;
+    dc.num_classes = 2;
+    dc.width = 4;
+    g2l::nn::Detector net(dc);
+    g2l::nn::save_detector(dir + "/det.g2l", net, {8, 14}, 4);
+    g2l::EstimatorOptions o;
+    o.detector = dir + "/det.g2l";
+    o.min_detection_score = 0.0;  // every class peak, whatever an untrained net scores
+    g2l::PoseEstimator est(kModel, o);
+    g2l::FrameView v = view_of(f);
+    REQUIRE_THROWS_WITH(est.detect(v), Contains("no RGB image"));
+    v.rgb = rgb.data.data();
+    const auto boxes = est.detect(v);
+    REQUIRE(boxes.size() == 2);  // one per class
+    for (const auto& b : boxes) {
+        REQUIRE((b.obj_id == 8 || b.obj_id == 14));
+        REQUIRE(b.peak_x >= 0);
+        REQUIRE(b.peak_x < v.width);
+        REQUIRE(b.peak_y < v.height);
+        REQUIRE(b.score >= 0);
+    }
+    REQUIRE(boxes[0].score >= boxes[1].score);
+    const auto poses = est.estimate(v);
+    REQUIRE(poses.size() == boxes.size());
+    for (size_t i = 0; i < poses.size(); ++i) REQUIRE(poses[i].obj_id == boxes[i].obj_id);
+    // A peak with a valid depth pixel lifts to the centre at the peak pixel's ray.
+    g2l::ObjectBox gt = box_of(f.frame->instances[0]);
+    gt.peak_x = gt.x + gt.w / 2.0;
+    gt.peak_y = gt.y + gt.h / 2.0;
+    const auto p = est.estimate(v, {gt});
+    REQUIRE(p.size() == 1);
+    REQUIRE(p[0].num_crop_points > 0);
+    // Without a detector: a clear error; a bad score threshold: a clear error.
+    g2l::PoseEstimator plain(kModel);
+    REQUIRE_THROWS_WITH(plain.detect(v), Contains("no detector"));
+    g2l::EstimatorOptions bad;
+    bad.min_detection_score = 2;
+    REQUIRE_THROWS_WITH(g2l::PoseEstimator(kModel, bad), Contains("min_detection_score"));
+    g2l::EstimatorOptions missing;
+    missing.detector = dir + "/none.g2l";
+    REQUIRE_THROWS_WITH(g2l::PoseEstimator(kModel, missing), Contains("none.g2l"));
 }

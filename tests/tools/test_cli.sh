@@ -22,8 +22,8 @@ hasnt() { ! grep -q -- "$1" "$T/err" || fail "stderr has '$1'"; }
 
 for tool in train/g2l_train train/g2l_eval train/g2l_bench train/g2l_rotstudy data/g2l_render apps/g2l_infer; do
     expect 2 "$B/$tool" --no-such-option
-    # (g2l_eval and g2l_rotstudy name their missing required option first)
-    case $tool in *g2l_eval|*g2l_rotstudy|*g2l_infer) has "required" ;; *) has "--no-such-option" ;; esac
+    # (g2l_rotstudy and g2l_infer name their missing required option first)
+    case $tool in *g2l_rotstudy|*g2l_infer) has "required" ;; *) has "--no-such-option" ;; esac
     [ "$(wc -l <"$T/err")" -le 2 ] || fail "$tool: a usage error takes more than 2 lines"
     expect 0 "$B/$tool" --help
     grep -q "Usage" "$T/out" || fail "$tool --help prints no usage"
@@ -35,6 +35,20 @@ has "must be >= 0, got -5"
 
 expect 1 "$B/train/g2l_train" --config "$T/missing.json"
 has "missing.json"
+# Detector configs ("task": "detector"): strict keys, and g2l_eval's detector modes.
+printf '{"task": "detector", "data": {"models_root": "/m", "object_ids": [1], "colour": 1}}' >"$T/det.json"
+expect 1 "$B/train/g2l_train" --config "$T/det.json"
+has "unknown key 'colour'"
+expect 2 "$B/train/g2l_eval" --root r
+has "give --checkpoint"
+expect 2 "$B/train/g2l_eval" --detector d.g2l
+has "needs --root"
+expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --detector d.g2l --root r
+has "needs --boxes det"
+expect 1 "$B/train/g2l_eval" --detector "$T/none.g2l" --root "$S/tests/data/ycbv_mini" --split train_real
+has "none.g2l"
+expect 2 "$B/apps/g2l_infer" --depth d.png --camera c.json --detector d.g2l
+has "needs the --rgb image"
 hasnt "failed at"
 expect 1 "$B/train/g2l_train" --config "$T/missing.json" --verbose
 has "failed at"
@@ -85,7 +99,7 @@ cat > "$T/dets.json" <<'JSON'
  {"scene_id": 0, "image_id": 1, "category_id": 14, "bbox": [700, 0, 20, 20], "score": 0.1, "time": 0.1}]
 JSON
 expect 2 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json"
-has "exactly one of --boxes and --box"
+has "exactly one of --boxes, --box and --detector"
 expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" --box 8,1,2,3
 has "expected OBJ_ID,X,Y,W,H"
 expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" --box 8,186,132,139,191

@@ -61,6 +61,10 @@ struct ObjectBox {
     int obj_id = 0;      ///< the object's id in the model (BOP obj_id)
     int x = 0, y = 0, w = 0, h = 0;
     double score = 1.0;  ///< the detector's confidence; copied to ObjectPose::score
+    /// The detector's class-probability peak (pixels); when >= 0 the sphere centre is this
+    /// pixel lifted with the nearest valid depth in the box (spec §2), else it comes from the
+    /// box and the depth alone. PoseEstimator::detect fills it.
+    double peak_x = -1, peak_y = -1;
 };
 
 /// Why a box got no pose.
@@ -109,6 +113,10 @@ struct EstimatorOptions {
                               ///< (-1: the model's `sampling.seg_points`)
     std::string models_info;  ///< a BOP models_info.json giving the object diameters, for
                               ///< model files that do not store them (older checkpoints)
+    /// A 2D detector export (g2l_train with a "task": "detector" config writes
+    /// <run_dir>/detector.g2l): enables detect() and estimate(frame) without boxes.
+    std::string detector;
+    double min_detection_score = 0.3;  ///< detect(): boxes scoring less are dropped
 };
 
 /// G2L-Net's pose pipeline for the objects of one trained model.
@@ -128,6 +136,14 @@ public:
     /// invalid frame: size <= 0, no depth or both depth buffers, depth_scale not finite and
     /// > 0, focal lengths not finite and > 0, principal point not finite.
     std::vector<ObjectPose> estimate(const FrameView& frame, const std::vector<ObjectBox>& boxes);
+
+    /// G2L-Net's global localization: the detector (EstimatorOptions::detector) on the frame's
+    /// RGB image; the best box of each object it was trained on that scores at least
+    /// EstimatorOptions::min_detection_score, best first, with its heat-map peak. Throws
+    /// std::runtime_error when no detector was given or the frame has no RGB image.
+    std::vector<ObjectBox> detect(const FrameView& frame);
+    /// The whole pipeline: detect(frame), then estimate(frame, those boxes).
+    std::vector<ObjectPose> estimate(const FrameView& frame);
 
     /// The obj_ids the model knows, ascending.
     std::vector<int> object_ids() const;

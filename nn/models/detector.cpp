@@ -1,0 +1,266 @@
+// SPDX-License-Identifier: MIT
+#include "nn/models/detector.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <nlohmann/json.hpp>
+
+#include "core/autograd.h"
+#include "core/checkpoint.h"
+#include "core/json.h"
+#include "core/error.h"
+#include "nn/ops/elementwise.h"
+#include "nn/ops/relu.h"
+#include "nn/ops/upsample.h"
+
+namespace g2l::nn {
+
+using json = nlohmann::json;
+constexpr const char* kDetectorExportFormat = "g2l-detector";
+
+void validate(const DetectorConfig& cfg) {
+    G2L_CHECK(cfg.num_classes >= 1 && cfg.num_classes <= 4096,
+              "detector: num_classes must be in [1, 4096], got ", cfg.num_classes);
+    G2L_CHECK(cfg.width >= 4 && cfg.width <= 256, "detector: width must be in [4, 256], got ",
+              cfg.width);
+}
+
+ConvBnRelu::ConvBnRelu(int64_t in, int64_t out, int64_t stride, Rng& rng) {
+    conv = register_module("conv", std::make_shared<Conv2d>(in, out, std::array<int64_t, 2>{3, 3},
+                                                            rng, std::array<int64_t, 2>{stride, stride},
+                                                            std::array<int64_t, 2>{1, 1}));
+    bn = register_module("bn", std::make_shared<BatchNorm>(out));
+}
+
+Tensor ConvBnRelu::forward(const Tensor& x) { return relu(bn->forward(conv->forward(x))); }
+
+Detector::Detector(const DetectorConfig& cfg) : cfg_(cfg) {
+    validate(cfg);
+    Rng rng(cfg.seed);
+    const int64_t c = cfg.width;
+    stem_ = register_module("stem", std::make_shared<ConvBnRelu>(3, c, 2, rng));
+    d4a_ = register_module("d4a", std::make_shared<ConvBnRelu>(c, 2 * c, 2, rng));
+    d4b_ = register_module("d4b", std::make_shared<ConvBnRelu>(2 * c, 2 * c, 1, rng));
+    d8a_ = register_module("d8a", std::make_shared<ConvBnRelu>(2 * c, 4 * c, 2, rng));
+    d8b_ = register_module("d8b", std::make_shared<ConvBnRelu>(4 * c, 4 * c, 1, rng));
+    d16a_ = register_module("d16a", std::make_shared<ConvBnRelu>(4 * c, 4 * c, 2, rng));
+    d16b_ = register_module("d16b", std::make_shared<ConvBnRelu>(4 * c, 4 * c, 1, rng));
+    lat8_ = register_module("lat8", std::make_shared<Conv2d>(4 * c, 4 * c,
+                                                             std::array<int64_t, 2>{1, 1}, rng));
+    up8_ = register_module("up8", std::make_shared<ConvBnRelu>(4 * c, 2 * c, 1, rng));
+    lat4_ = register_module("lat4", std::make_shared<Conv2d>(2 * c, 2 * c,
+                                                             std::array<int64_t, 2>{1, 1}, rng));
+    up4_ = register_module("up4", std::make_shared<ConvBnRelu>(2 * c, 2 * c, 1, rng));
+    head_ = register_module("head", std::make_shared<ConvBnRelu>(2 * c, 2 * c, 1, rng));
+    const std::array<int64_t, 2> k1{1, 1};
+    heat_ = register_module("heat", std::make_shared<Conv2d>(2 * c, cfg.num_classes, k1, rng));
+    size_ = register_module("size", std::make_shared<Conv2d>(2 * c, 2, k1, rng));
+    offset_ = register_module("offset", std::make_shared<Conv2d>(2 * c, 2, k1, rng));
+    // CenterNet's prior: every cell starts at probability ~0.1 of being a centre, so the focal
+    // loss of the many empty cells does not swamp the first steps.
+    autograd::NoGradGuard no_grad;
+    heat_->bias.fill_(-2.19);
+}
+
+DetOut Detector::forward(const Tensor& x) {
+    G2L_CHECK(x.defined() && x.dim() == 4 && x.size(1) == 3 && x.size(0) > 0 && x.size(2) > 0 &&
+                  x.size(3) > 0 && x.size(2) % 16 == 0 && x.size(3) % 16 == 0,
+              "Detector: expected the image as [B, 3, H, W] with H and W positive multiples of "
+              "16, got ",
+              x.defined() ? x.desc() : std::string("undefined"));
+    const Tensor f2 = stem_->forward(x);
+    const Tensor f4 = d4b_->forward(d4a_->forward(f2));
+    const Tensor f8 = d8b_->forward(d8a_->forward(f4));
+    const Tensor f16 = d16b_->forward(d16a_->forward(f8));
+    const Tensor g8 = up8_->forward(add(upsample_nearest2d(f16, 2), lat8_->forward(f8)));
+    const Tensor g4 = up4_->forward(add(upsample_nearest2d(g8, 2), lat4_->forward(f4)));
+    const Tensor h = head_->forward(g4);
+    return {heat_->forward(h), size_->forward(h), offset_->forward(h)};
+}
+
+std::vector<Detection> decode_detections(const float* prob, const float* size,
+                                         const float* offset, int K, int w, int h,
+                                         float min_score, int max_per_class, int stride) {
+    G2L_CHECK(prob && size && offset, "decode_detections: null buffer");
+    G2L_CHECK(K > 0 && h > 0 && w > 0 && max_per_class > 0 && stride > 0,
+              "decode_detections: sizes must be > 0, got K ", K, ", ", w, " x ", h,
+              ", max_per_class ", max_per_class, ", stride ", stride);
+    std::vector<Detection> all;
+    const size_t plane = size_t(h) * size_t(w);
+    for (int k = 0; k < K; ++k) {
+        const float* p = prob + size_t(k) * plane;
+        std::vector<Detection> mine;
+        for (int y = 0; y < h; ++y) {
+            for (int x = 0; x < w; ++x) {
+                const float v = p[size_t(y) * size_t(w) + size_t(x)];
+                if (!(v >= min_score)) continue;
+                bool peak = true;
+                for (int dy = -1; dy <= 1 && peak; ++dy) {
+                    for (int dx = -1; dx <= 1; ++dx) {
+                        const int yy = y + dy, xx = x + dx;
+                        if ((dy == 0 && dx == 0) || yy < 0 || yy >= h || xx < 0 || xx >= w)
+                            continue;
+                        const float n = p[size_t(yy) * size_t(w) + size_t(xx)];
+                        // A neighbour beats this cell if larger, or equal and earlier.
+                        const bool earlier = yy < y || (yy == y && xx < x);
+                        if (n > v || (n == v && earlier)) {
+                            peak = false;
+                            break;
+                        }
+                    }
+                }
+                if (!peak) continue;
+                const size_t i = size_t(y) * size_t(w) + size_t(x);
+                Detection d;
+                d.cls = k;
+                d.score = v;
+                const float ox = std::clamp(offset[i], -0.5f, 1.5f);
+                const float oy = std::clamp(offset[plane + i], -0.5f, 1.5f);
+                const float cx = (float(x) + ox) * float(stride);
+                const float cy = (float(y) + oy) * float(stride);
+                // Sizes are log(pixels / stride); clamp so a wild output cannot overflow.
+                const float bw = std::exp(std::clamp(size[i], -4.f, 8.f)) * float(stride);
+                const float bh = std::exp(std::clamp(size[plane + i], -4.f, 8.f)) * float(stride);
+                d.peak_x = cx;
+                d.peak_y = cy;
+                d.x = cx - 0.5f * bw;
+                d.y = cy - 0.5f * bh;
+                d.w = bw;
+                d.h = bh;
+                mine.push_back(d);
+            }
+        }
+        std::stable_sort(mine.begin(), mine.end(),
+                         [](const Detection& a, const Detection& b) { return a.score > b.score; });
+        if (int(mine.size()) > max_per_class) mine.resize(size_t(max_per_class));
+        all.insert(all.end(), mine.begin(), mine.end());
+    }
+    std::stable_sort(all.begin(), all.end(),
+                     [](const Detection& a, const Detection& b) { return a.score > b.score; });
+    return all;
+}
+
+Tensor detector_input(const uint8_t* rgb, int width, int height, int downscale, int* in_w,
+                      int* in_h) {
+    G2L_CHECK(rgb && width > 0 && height > 0, "detector_input: empty image (", width, " x ",
+              height, ")");
+    G2L_CHECK(downscale == 1 || downscale == 2 || downscale == 4,
+              "detector_input: downscale must be 1, 2 or 4, got ", downscale);
+    const int w = width / downscale, h = height / downscale;
+    G2L_CHECK(w > 0 && h > 0, "detector_input: image ", width, " x ", height,
+              " is smaller than the downscale ", downscale);
+    const int W = (w + 15) / 16 * 16, H = (h + 15) / 16 * 16;
+    Tensor x = Tensor::zeros({1, 3, H, W});
+    float* px = x.data<float>();
+    const float norm = 1.f / float(downscale * downscale);
+    for (int y = 0; y < h; ++y)
+        for (int xx = 0; xx < w; ++xx)
+            for (int c = 0; c < 3; ++c) {
+                float s = 0;
+                for (int dy = 0; dy < downscale; ++dy)
+                    for (int dx = 0; dx < downscale; ++dx)
+                        s += float(rgb[(size_t(y * downscale + dy) * size_t(width) +
+                                        size_t(xx * downscale + dx)) * 3 + size_t(c)]);
+                px[(size_t(c) * size_t(H) + size_t(y)) * size_t(W) + size_t(xx)] =
+                    (s * norm / 255.f - 0.5f) / 0.25f;
+            }
+    if (in_w) *in_w = W;
+    if (in_h) *in_h = H;
+    return x;
+}
+
+void save_detector(const std::string& path, const Detector& net,
+                   const std::vector<int>& object_ids, int downscale) {
+    std::vector<std::pair<std::string, Tensor>> tensors;
+    for (const auto& [name, t] : net.state_dict()) tensors.emplace_back("model." + name, t);
+    const json meta{{"format", kDetectorExportFormat},
+                    {"version", 1},
+                    {"num_classes", net.config().num_classes},
+                    {"width", net.config().width},
+                    {"object_ids", object_ids},
+                    {"downscale", downscale},
+                    {"stride", Detector::kStride}};
+    save_checkpoint(path, tensors, meta.dump());
+}
+
+LoadedDetector load_detector(const std::string& path) {
+    const Checkpoint ck = load_checkpoint(path);
+    const json meta = parse_json_strict(ck.meta_json, path + " (metadata)");
+    G2L_CHECK(meta.is_object() && meta.value("format", "") == kDetectorExportFormat, "'", path,
+              "' is not a detector export (metadata format '",
+              meta.is_object() ? meta.value("format", "") : std::string(), "', expected '",
+              kDetectorExportFormat, "')");
+    auto need_int = [&](const char* k) {
+        G2L_CHECK(meta.contains(k) && meta[k].is_number_integer(), "'", path, "': metadata key '",
+                  k, "' is missing or not an integer");
+        return meta[k].get<int>();
+    };
+    LoadedDetector d;
+    DetectorConfig dc;
+    dc.num_classes = need_int("num_classes");
+    dc.width = need_int("width");
+    d.downscale = need_int("downscale");
+    G2L_CHECK(d.downscale == 1 || d.downscale == 2 || d.downscale == 4, "'", path,
+              "': downscale must be 1, 2 or 4, got ", d.downscale);
+    G2L_CHECK(meta.contains("object_ids") && meta["object_ids"].is_array(), "'", path,
+              "': metadata key 'object_ids' is missing or not a list");
+    for (const json& e : meta["object_ids"]) {
+        G2L_CHECK(e.is_number_integer(), "'", path, "': object_ids must be integers");
+        d.object_ids.push_back(e.get<int>());
+    }
+    G2L_CHECK(int(d.object_ids.size()) == dc.num_classes, "'", path, "': ", d.object_ids.size(),
+              " object ids for ", dc.num_classes, " classes");
+    d.net = std::make_unique<Detector>(dc);
+    std::map<std::string, Tensor> sd;
+    for (const auto& [name, t] : ck.tensors) {
+        G2L_CHECK(name.rfind("model.", 0) == 0, "'", path, "': unexpected tensor '", name, "'");
+        sd[name.substr(6)] = t;
+    }
+    d.net->load_state_dict(sd, true);
+    d.net->eval();
+    return d;
+}
+
+std::vector<Detection> detect(Detector& net, int downscale, const uint8_t* rgb, int width,
+                                  int height, float min_score, int max_per_class) {
+    int iw = 0, ih = 0;
+    const Tensor x = detector_input(rgb, width, height, downscale, &iw, &ih);
+    autograd::NoGradGuard ng;
+    net.eval();
+    const DetOut o = net.forward(x);
+    Tensor prob = sigmoid(o.heat);
+    {  // cells whose centre lies in the zero padding (outside the image) cannot be peaks
+        const int64_t K = prob.size(1), hh = prob.size(2), ww = prob.size(3);
+        const double real_w = double(width / downscale), real_h = double(height / downscale);
+        float* p = prob.data<float>();
+        for (int64_t k = 0; k < K; ++k)
+            for (int64_t y = 0; y < hh; ++y)
+                for (int64_t x = 0; x < ww; ++x)
+                    if ((double(x) + 0.5) * Detector::kStride >= real_w ||
+                        (double(y) + 0.5) * Detector::kStride >= real_h)
+                        p[(k * hh + y) * ww + x] = -1.f;
+    }
+    std::vector<Detection> dets = decode_detections(
+        prob.data<float>(), o.size.data<float>(), o.offset.data<float>(), int(o.heat.size(1)),
+        int(o.heat.size(3)), int(o.heat.size(2)), min_score, max_per_class + 8, Detector::kStride);
+    // Input pixels -> image pixels; peaks in the zero padding (outside the image) are dropped
+    // and the sub-cell offset may not carry a peak off the image.
+    std::vector<Detection> out;
+    std::map<int, int> per_class;
+    for (Detection d : dets) {
+        const float s = float(downscale);
+        d.peak_x *= s, d.peak_y *= s, d.x *= s, d.y *= s, d.w *= s, d.h *= s;
+        if (d.peak_x < -0.5f * Detector::kStride * s || d.peak_y < -0.5f * Detector::kStride * s ||
+            d.peak_x >= float(width) + 0.5f * Detector::kStride * s ||
+            d.peak_y >= float(height) + 0.5f * Detector::kStride * s)
+            continue;
+        d.peak_x = std::clamp(d.peak_x, 0.f, float(width) - 0.5f);
+        d.peak_y = std::clamp(d.peak_y, 0.f, float(height) - 0.5f);
+        if (per_class[d.cls]++ >= max_per_class) continue;
+        out.push_back(d);
+    }
+    return out;
+}
+
+}  // namespace g2l::nn

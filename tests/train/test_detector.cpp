@@ -1,0 +1,281 @@
+// SPDX-License-Identifier: MIT
+// The 2D detector (nn/models/detector.h, train/detector_train.h): peak extraction and box
+// decoding on synthetic heat-maps, targets that decode back to their boxes, the focal loss at
+// known values, bad configs and exports, and a tiny detector that learns to find coloured squares.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "core/autograd.h"
+#include "core/checkpoint.h"
+#include "core/rng.h"
+#include "data/bop.h"
+#include "nn/models/detector.h"
+#include "nn/ops/elementwise.h"
+#include "nn/optim.h"
+#include "testing.h"
+#include "train/detector_train.h"
+
+using namespace g2l;
+using Catch::Contains;
+namespace fs = std::filesystem;
+
+namespace {
+
+// Decodes targets as if they were network outputs (heat as probabilities).
+std::vector<nn::Detection> decode_targets(const train::DetTargets& t, int K, int w, int h,
+                                          float min_score = 0.5f) {
+    return nn::decode_detections(t.heat.data(), t.size.data(), t.offset.data(), K, w, h,
+                                 min_score, 5, 4);
+}
+
+}  // namespace
+
+TEST_CASE("detector: peaks are local maxima per class, best first, plateaus give one peak",
+          "[detector]") {
+    const int K = 2, w = 8, h = 6;
+    std::vector<float> prob(size_t(K * w * h), 0.f), size(size_t(2 * w * h), 0.f),
+        off(size_t(2 * w * h), 0.5f);
+    auto at = [&](int k, int x, int y) -> float& { return prob[size_t((k * h + y) * w + x)]; };
+    at(0, 2, 1) = 0.9f;
+    at(0, 3, 1) = 0.6f;  // neighbour of a higher cell: not a peak
+    at(0, 6, 4) = 0.4f;  // a second, weaker peak of class 0
+    at(1, 5, 2) = 0.7f;  // a plateau of two equal cells: one peak (the first in row order)
+    at(1, 6, 2) = 0.7f;
+    at(1, 0, 5) = 0.2f;  // below the threshold
+    size[size_t(1 * w + 2)] = std::log(10.f);  // class-agnostic size at (2, 1): 40 x 8 px
+    size[size_t(w * h + 1 * w + 2)] = std::log(2.f);
+    const auto d = nn::decode_detections(prob.data(), size.data(), off.data(), K, w, h, 0.3f, 5, 4);
+    REQUIRE(d.size() == 3);
+    REQUIRE(d[0].cls == 0);
+    REQUIRE(d[0].score == Approx(0.9f));
+    REQUIRE(d[0].peak_x == Approx((2 + 0.5f) * 4));
+    REQUIRE(d[0].peak_y == Approx((1 + 0.5f) * 4));
+    REQUIRE(d[0].w == Approx(40.f).epsilon(1e-5));
+    REQUIRE(d[0].h == Approx(8.f).epsilon(1e-5));
+    REQUIRE(d[0].x == Approx(10.f - 20.f));
+    REQUIRE(d[1].cls == 1);
+    REQUIRE(d[1].peak_x == Approx((5 + 0.5f) * 4));
+    REQUIRE(d[2].cls == 0);
+    REQUIRE(d[2].score == Approx(0.4f));
+    // max_per_class keeps the best of each class.
+    REQUIRE(nn::decode_detections(prob.data(), size.data(), off.data(), K, w, h, 0.3f, 1, 4).size() == 2);
+    REQUIRE_THROWS_WITH(nn::decode_detections(prob.data(), size.data(), off.data(), 0, w, h, 0.3f, 5),
+                        Contains("sizes must be > 0"));
+    REQUIRE_THROWS_WITH(nn::decode_detections(nullptr, size.data(), off.data(), K, w, h, 0.3f, 5),
+                        Contains("null buffer"));
+}
+
+TEST_CASE("detector: targets decode back to their boxes", "[detector]") {
+    const int K = 3, w = 40, h = 30;
+    const std::vector<train::DetBox> boxes{{0, 10.f, 12.f, 40.f, 30.f},
+                                           {2, 100.f, 50.f, 21.f, 55.f},
+                                           {2, 400.f, 10.f, 10.f, 10.f},   // centre off the grid
+                                           {1, 5.f, 5.f, 0.f, 10.f}};      // empty: skipped
+    const train::DetTargets t = train::make_detector_targets(boxes, K, w, h);
+    int centres = 0;
+    for (float m : t.mask) centres += m > 0;
+    REQUIRE(centres == 2);
+    const auto d = decode_targets(t, K, w, h);
+    REQUIRE(d.size() == 2);
+    for (const auto& det : d) {
+        const train::DetBox& b = det.cls == 0 ? boxes[0] : boxes[1];
+        REQUIRE(det.x == Approx(b.x).margin(1e-3));
+        REQUIRE(det.y == Approx(b.y).margin(1e-3));
+        REQUIRE(det.w == Approx(b.w).margin(1e-3));
+        REQUIRE(det.h == Approx(b.h).margin(1e-3));
+    }
+    REQUIRE_THROWS_WITH(train::make_detector_targets({{3, 1, 1, 5, 5}}, K, w, h),
+                        Contains("class 3 outside [0, 3)"));
+}
+
+TEST_CASE("detector: the focal loss at known values", "[detector]") {
+    // One class, a 1 x 1 grid... a 4 x 4 output with one centre; logits 0 (p = 0.5) everywhere.
+    nn::DetOut o;
+    o.heat = Tensor::zeros({1, 1, 4, 4});
+    o.size = Tensor::zeros({1, 2, 4, 4});
+    o.offset = Tensor::zeros({1, 2, 4, 4});
+    train::DetTargets t;
+    t.heat.assign(16, 0.f);
+    t.heat[5] = 1.f;
+    t.mask.assign(16, 0.f);
+    t.mask[5] = 1.f;
+    t.size.assign(32, 0.f);
+    t.size[5] = 1.f;  // |0 - 1| + |0 - 0|
+    t.offset.assign(32, 0.f);
+    t.offset[16 + 5] = 0.25f;
+    double lh = 0, ls = 0, lo = 0;
+    const Tensor L = train::detector_loss(o, {t}, 1, 0.1, 1, &lh, &ls, &lo);
+    // centre: -(1 - .5)^2 log .5; 15 empty cells: -(1)^4 .5^2 log .5 each; one centre.
+    const double expect = -(0.25 * std::log(0.5)) - 15 * (0.25 * std::log(0.5));
+    REQUIRE(lh == Approx(expect).epsilon(1e-5));
+    REQUIRE(ls == Approx(1.0).epsilon(1e-6));
+    REQUIRE(lo == Approx(0.25).epsilon(1e-6));
+    REQUIRE(L.item<double>() == Approx(expect + 0.1 + 0.25).epsilon(1e-5));
+    REQUIRE_THROWS_WITH(train::detector_loss(o, {t, t}, 1, 1, 1), Contains("2 targets for a batch of 1"));
+}
+
+TEST_CASE("detector: a tiny detector learns to find coloured squares", "[detector][learn]") {
+    // 48 x 48 images of noise with a red and/or a green square (8-20 px); class 0 = red.
+    const int S = 48, K = 2;
+    auto make = [&](Rng& rng, Tensor* x, std::vector<train::DetBox>* boxes) {
+        std::vector<uint8_t> rgb(size_t(S * S * 3));
+        for (auto& v : rgb) v = uint8_t(rng.below(120));
+        for (int k = 0; k < K; ++k) {
+            if (rng.uniform() < 0.25) continue;
+            const int sz = int(rng.randint(8, 21));
+            const int x0 = int(rng.randint(0, S - sz)), y0 = int(rng.randint(0, S - sz));
+            for (int y = y0; y < y0 + sz; ++y)
+                for (int xx = x0; xx < x0 + sz; ++xx) {
+                    uint8_t* p = &rgb[size_t((y * S + xx) * 3)];
+                    p[0] = k == 0 ? 230 : 20, p[1] = k == 1 ? 230 : 20, p[2] = 20;
+                }
+            boxes->push_back({k, float(x0), float(y0), float(sz), float(sz)});
+        }
+        *x = nn::detector_input(rgb.data(), S, S, 1, nullptr, nullptr);
+    };
+    nn::DetectorConfig dc;
+    dc.num_classes = K;
+    dc.width = 8;
+    dc.seed = 3;
+    nn::Detector net(dc);
+    nn::AdamOptions ao;
+    ao.lr = 5e-3;
+    nn::ParamGroup g;
+    g.name = "detector";
+    g.params = net.named_parameters();
+    nn::Adam adam({g}, ao);
+    Rng rng(11);
+    const int B = 8;
+    for (int step = 0; step < 250; ++step) {
+        std::vector<Tensor> xs;
+        std::vector<train::DetTargets> ts;
+        Tensor batch = Tensor::empty({B, 3, S, S});
+        for (int b = 0; b < B; ++b) {
+            Tensor x;
+            std::vector<train::DetBox> boxes;
+            make(rng, &x, &boxes);
+            std::copy(x.data<float>(), x.data<float>() + x.numel(),
+                      batch.data<float>() + size_t(b) * size_t(x.numel()));
+            ts.push_back(train::make_detector_targets(boxes, K, S / 4, S / 4));
+        }
+        net.train();
+        adam.zero_grad();
+        Tensor loss = train::detector_loss(net.forward(batch), ts, 1, 0.1, 1);
+        loss.backward();
+        adam.step();
+    }
+    // Held-out images: the best detection of each present class overlaps its square.
+    Rng test_rng(999);
+    int present = 0, found = 0;
+    for (int i = 0; i < 30; ++i) {
+        Tensor x;
+        std::vector<train::DetBox> boxes;
+        make(test_rng, &x, &boxes);
+        autograd::NoGradGuard ng;
+        net.eval();
+        const nn::DetOut o = net.forward(x);
+        const Tensor p = nn::sigmoid(o.heat);
+        const auto dets = nn::decode_detections(p.data<float>(), o.size.data<float>(),
+                                                o.offset.data<float>(), K, S / 4, S / 4, 0.05f, 1);
+        for (const auto& b : boxes) {
+            ++present;
+            for (const auto& d : dets) {
+                if (d.cls != b.cls) continue;
+                const float ix = std::max(0.f, std::min(d.x + d.w, b.x + b.w) - std::max(d.x, b.x));
+                const float iy = std::max(0.f, std::min(d.y + d.h, b.y + b.h) - std::max(d.y, b.y));
+                const float inter = ix * iy, uni = d.w * d.h + b.w * b.h - inter;
+                found += inter / uni >= 0.5f;
+            }
+        }
+    }
+    INFO(found << " of " << present << " squares found with IoU >= 0.5");
+    REQUIRE(present > 30);
+    REQUIRE(found >= int(0.8 * present));
+}
+
+TEST_CASE("detector: bad configs, shapes and exports are named errors", "[detector]") {
+    const std::string dir = testing::temp_dir("detector_cfg");
+    auto parse = [&](const std::string& text) {
+        return train::parse_detector_config(text, "det.json", dir);
+    };
+    const std::string ok = R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1, 2]}})";
+    const train::DetectorTrainConfig c = parse(ok);
+    REQUIRE(c.object_ids == std::vector<int>{1, 2});
+    REQUIRE(c.models_root == "/m");
+    // Round trip through the written config.
+    const train::DetectorTrainConfig c2 = parse(train::detector_config_to_json(c));
+    REQUIRE(train::detector_config_to_json(c2) == train::detector_config_to_json(c));
+    REQUIRE_THROWS_WITH(parse(R"({"task": "pose"})"), Contains("'task' must be \"detector\""));
+    REQUIRE_THROWS_WITH(parse(R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1], "colour": 1}})"),
+                        Contains("unknown key 'colour'"));
+    REQUIRE_THROWS_WITH(parse(R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1, 1]}})"),
+                        Contains("repeats an id"));
+    REQUIRE_THROWS_WITH(parse(R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1], "downscale": 3}})"),
+                        Contains("'data.downscale' must be 1, 2 or 4, got 3"));
+    REQUIRE_THROWS_WITH(parse(R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1]}, "train": {"batch": "8"}})"),
+                        Contains("'batch' must be a number"));
+    REQUIRE_THROWS_WITH(parse(R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1]}, "optim": {"lr": -1}})"),
+                        Contains("'optim.lr' must be > 0"));
+    REQUIRE_THROWS_WITH(parse(R"({"task": "detector", "task": "detector"})"), Contains("duplicate"));
+
+    nn::DetectorConfig dc;
+    dc.num_classes = 2;
+    dc.width = 4;
+    nn::Detector net(dc);
+    REQUIRE_THROWS_WITH(net.forward(Tensor::zeros({1, 3, 20, 32})), Contains("multiples of 16"));
+    REQUIRE_THROWS_WITH(nn::Detector(nn::DetectorConfig{0, 16, 1}), Contains("num_classes"));
+    // Export round trip, a truncated export, a pose checkpoint given as a detector.
+    const std::string path = (fs::path(dir) / "det.g2l").string();
+    nn::save_detector(path, net, {7, 9}, 2);
+    const nn::LoadedDetector ld = nn::load_detector(path);
+    REQUIRE(ld.object_ids == std::vector<int>{7, 9});
+    REQUIRE(ld.downscale == 2);
+    REQUIRE(ld.net->state_dict().at("heat.bias").to_vector<float>() ==
+            net.state_dict().at("heat.bias").to_vector<float>());
+    {
+        std::ifstream in(path, std::ios::binary);
+        std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        std::ofstream out(path + ".cut", std::ios::binary);
+        out.write(bytes.data(), std::streamsize(bytes.size() / 2));
+    }
+    REQUIRE_THROWS_WITH(nn::load_detector(path + ".cut"), Contains("truncated"));
+    save_checkpoint(path + ".other", {{"x", Tensor::zeros({1})}}, R"({"format": "g2l-model"})");
+    REQUIRE_THROWS_WITH(nn::load_detector(path + ".other"), Contains("is not a detector export"));
+    std::vector<uint8_t> rgb(12, 0);
+    REQUIRE_THROWS_WITH(nn::detector_input(rgb.data(), 2, 2, 3, nullptr, nullptr),
+                        Contains("downscale must be 1, 2 or 4"));
+    REQUIRE_THROWS_WITH(nn::detector_input(rgb.data(), 0, 2, 1, nullptr, nullptr),
+                        Contains("empty image"));
+}
+
+TEST_CASE("detector: evaluation and g2l_eval's detector boxes run on real frames", "[detector]") {
+    // An untrained detector for the fixture's two objects: the plumbing, not the accuracy.
+    const data::BopDataset ds = data::open_bop(testing::fixture_dir() + "/ycbv_mini", "train_real");
+    nn::DetectorConfig dc;
+    dc.num_classes = 2;
+    dc.width = 4;
+    nn::LoadedDetector det;
+    det.net = std::make_unique<nn::Detector>(dc);
+    det.net->eval();
+    det.object_ids = {8, 14};
+    det.downscale = 4;
+    const auto r = train::evaluate_detector(det, ds, 0.0, 0.3f, 2);
+    REQUIRE(r.frames == 2);
+    REQUIRE(r.rows.size() == 2);
+    REQUIRE(r.total.instances > 0);
+    REQUIRE(r.ms_per_frame > 0);
+    const std::string table = train::detector_eval_table(r);
+    REQUIRE_THAT(table, Contains("recall@.5") && Contains("2 frames"));
+    const auto dets = train::run_detector_on(det, ds, 0.0f);
+    REQUIRE(!dets.empty());
+    for (const auto& d : dets) {
+        REQUIRE(d.scene_id >= 0);
+        REQUIRE((d.obj_id == 8 || d.obj_id == 14));
+        REQUIRE(d.peak_x >= 0);
+        REQUIRE(d.peak_x < 640);
+        REQUIRE(d.peak_y < 480);
+        REQUIRE(d.time > 0);
+    }
+}

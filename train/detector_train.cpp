@@ -1,0 +1,887 @@
+// SPDX-License-Identifier: MIT
+#include "train/detector_train.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+
+#include "core/autograd.h"
+#include "core/checkpoint.h"
+#include "core/error.h"
+#include "core/json.h"
+#include "core/rng.h"
+#include "core/threads.h"
+#include "data/bop.h"
+#include "data/draw.h"
+#include "data/render.h"
+#include "nn/ops/elementwise.h"
+#include "nn/ops/reduce.h"
+#include "nn/optim.h"
+#include "train/config.h"
+#include "train/trainer.h"
+
+namespace g2l::train {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr const char* kCheckpointFormat = "g2l-detector-train";
+
+// ---------------------------------------------------------------- config
+struct Keys {
+    const json& obj;
+    std::string where;
+    std::set<std::string> seen;
+    Keys(const json& o, std::string w) : obj(o), where(std::move(w)) {
+        G2L_CHECK(o.is_object(), where, ": expected a JSON object, got ", o.type_name());
+    }
+    const json* get(const std::string& k) {
+        seen.insert(k);
+        auto it = obj.find(k);
+        return it == obj.end() ? nullptr : &*it;
+    }
+    template <class T> void num(const std::string& k, T& v) {
+        if (const json* j = get(k)) {
+            G2L_CHECK(j->is_number(), where, ": '", k, "' must be a number, got ", j->dump());
+            if constexpr (std::is_integral_v<T>) {
+                G2L_CHECK(j->is_number_integer() || (j->is_number_float() &&
+                                                     std::floor(j->get<double>()) == j->get<double>()),
+                          where, ": '", k, "' must be an integer, got ", j->dump());
+                v = T(j->get<double>());
+            } else {
+                v = j->get<T>();
+            }
+        }
+    }
+    void text(const std::string& k, std::string& v) {
+        if (const json* j = get(k)) {
+            G2L_CHECK(j->is_string(), where, ": '", k, "' must be a string, got ", j->dump());
+            v = j->get<std::string>();
+        }
+    }
+    void ints(const std::string& k, std::vector<int>& v) {
+        if (const json* j = get(k)) {
+            G2L_CHECK(j->is_array(), where, ": '", k, "' must be a list of integers, got ",
+                      j->dump());
+            v.clear();
+            for (const json& e : *j) {
+                G2L_CHECK(e.is_number_integer(), where, ": '", k,
+                          "' must be a list of integers, got ", j->dump());
+                v.push_back(e.get<int>());
+            }
+        }
+    }
+    void done() {
+        for (auto it = obj.begin(); it != obj.end(); ++it)
+            if (!seen.count(it.key())) {
+                std::string known;
+                for (const auto& s : seen) known += (known.empty() ? "" : ", ") + s;
+                G2L_CHECK(false, where, ": unknown key '", it.key(), "' (known: ", known, ")");
+            }
+    }
+};
+
+json to_json(const DetectorTrainConfig& c) {
+    return json{{"task", "detector"},
+                {"name", c.name},
+                {"seed", c.seed},
+                {"threads", c.threads},
+                {"device", c.device},
+                {"run_dir", c.run_dir},
+                {"data",
+                 {{"models_root", c.models_root},
+                  {"object_ids", c.object_ids},
+                  {"downscale", c.downscale},
+                  {"min_visib_fract", c.min_visib_fract},
+                  {"scene", json::parse(data::scene_config_to_json(c.scene))}}},
+                {"augment",
+                 {{"color_jitter", c.color_jitter},
+                  {"noise_std", c.noise_std},
+                  {"blur_prob", c.blur_prob},
+                  {"gray_prob", c.gray_prob},
+                  {"clutter_prob", c.clutter_prob}}},
+                {"model", {{"width", c.width}}},
+                {"loss", {{"heat", c.w_heat}, {"size", c.w_size}, {"offset", c.w_offset}}},
+                {"optim", {{"lr", c.lr}}},
+                {"train",
+                 {{"steps", c.steps},
+                  {"batch", c.batch},
+                  {"checkpoint_every", c.checkpoint_every},
+                  {"log_every", c.log_every},
+                  {"time_limit_min", c.time_limit_min}}},
+                {"val",
+                 {{"root", c.val_root},
+                  {"split", c.val_split},
+                  {"every", c.val_every},
+                  {"max_frames", c.val_max_frames}}}};
+}
+
+void validate(const DetectorTrainConfig& c, const std::string& where) {
+    G2L_CHECK(!c.models_root.empty(), where, ": 'data.models_root' is required");
+    G2L_CHECK(!c.object_ids.empty(), where, ": 'data.object_ids' must list at least one object");
+    std::set<int> ids(c.object_ids.begin(), c.object_ids.end());
+    G2L_CHECK(ids.size() == c.object_ids.size(), where, ": 'data.object_ids' repeats an id");
+    G2L_CHECK(c.downscale == 1 || c.downscale == 2 || c.downscale == 4, where,
+              ": 'data.downscale' must be 1, 2 or 4, got ", c.downscale);
+    G2L_CHECK(c.min_visib_fract >= 0 && c.min_visib_fract <= 1, where,
+              ": 'data.min_visib_fract' must be in [0, 1], got ", c.min_visib_fract);
+    auto frac = [&](const char* k, double v) {
+        G2L_CHECK(std::isfinite(v) && v >= 0 && v <= 1, where, ": '", k, "' must be in [0, 1], got ", v);
+    };
+    frac("augment.color_jitter", c.color_jitter);
+    frac("augment.blur_prob", c.blur_prob);
+    frac("augment.gray_prob", c.gray_prob);
+    frac("augment.clutter_prob", c.clutter_prob);
+    G2L_CHECK(std::isfinite(c.noise_std) && c.noise_std >= 0 && c.noise_std <= 128, where,
+              ": 'augment.noise_std' must be in [0, 128], got ", c.noise_std);
+    G2L_CHECK(c.width >= 4 && c.width <= 256, where, ": 'model.width' must be in [4, 256], got ",
+              c.width);
+    for (auto [k, v] : {std::pair<const char*, double>{"loss.heat", c.w_heat},
+                        {"loss.size", c.w_size}, {"loss.offset", c.w_offset}})
+        G2L_CHECK(std::isfinite(v) && v >= 0, where, ": '", k, "' must be >= 0, got ", v);
+    G2L_CHECK(std::isfinite(c.lr) && c.lr > 0, where, ": 'optim.lr' must be > 0, got ", c.lr);
+    G2L_CHECK(c.steps > 0, where, ": 'train.steps' must be > 0, got ", c.steps);
+    G2L_CHECK(c.batch > 0 && c.batch <= 1024, where, ": 'train.batch' must be in [1, 1024], got ",
+              c.batch);
+    G2L_CHECK(c.checkpoint_every > 0, where, ": 'train.checkpoint_every' must be > 0, got ",
+              c.checkpoint_every);
+    G2L_CHECK(c.log_every > 0, where, ": 'train.log_every' must be > 0, got ", c.log_every);
+    G2L_CHECK(std::isfinite(c.time_limit_min) && c.time_limit_min >= 0, where,
+              ": 'train.time_limit_min' must be >= 0, got ", c.time_limit_min);
+    G2L_CHECK(c.val_every >= 0 && c.val_max_frames >= 0, where,
+              ": 'val.every' and 'val.max_frames' must be >= 0");
+    G2L_CHECK(parse_device(c.device).is_cpu(), where, ": device '", c.device,
+              "': the detector trains on the CPU in this version");
+    G2L_CHECK(c.threads >= 0, where, ": 'threads' must be >= 0, got ", c.threads);
+}
+
+}  // namespace
+
+DetectorTrainConfig parse_detector_config(const std::string& json_text, const std::string& source,
+                                          const std::string& base_dir) {
+    const json root = parse_json_strict(json_text, source);
+    DetectorTrainConfig c;
+    Keys k(root, source);
+    std::string task;
+    k.text("task", task);
+    G2L_CHECK(task == "detector", source, ": 'task' must be \"detector\" for a detector config, "
+                                          "got \"", task, "\"");
+    k.text("name", c.name);
+    k.num("seed", c.seed);
+    k.num("threads", c.threads);
+    k.text("device", c.device);
+    k.text("run_dir", c.run_dir);
+    if (const json* d = k.get("data")) {
+        Keys kd(*d, source + ": data");
+        kd.text("models_root", c.models_root);
+        kd.ints("object_ids", c.object_ids);
+        kd.num("downscale", c.downscale);
+        kd.num("min_visib_fract", c.min_visib_fract);
+        if (const json* s = kd.get("scene"))
+            c.scene = data::parse_scene_config(s->dump(), source + ": data.scene");
+        kd.done();
+    }
+    if (const json* a = k.get("augment")) {
+        Keys ka(*a, source + ": augment");
+        ka.num("color_jitter", c.color_jitter);
+        ka.num("noise_std", c.noise_std);
+        ka.num("blur_prob", c.blur_prob);
+        ka.num("gray_prob", c.gray_prob);
+        ka.num("clutter_prob", c.clutter_prob);
+        ka.done();
+    }
+    if (const json* m = k.get("model")) {
+        Keys km(*m, source + ": model");
+        km.num("width", c.width);
+        km.done();
+    }
+    if (const json* l = k.get("loss")) {
+        Keys kl(*l, source + ": loss");
+        kl.num("heat", c.w_heat);
+        kl.num("size", c.w_size);
+        kl.num("offset", c.w_offset);
+        kl.done();
+    }
+    if (const json* o = k.get("optim")) {
+        Keys ko(*o, source + ": optim");
+        ko.num("lr", c.lr);
+        ko.done();
+    }
+    if (const json* t = k.get("train")) {
+        Keys kt(*t, source + ": train");
+        kt.num("steps", c.steps);
+        kt.num("batch", c.batch);
+        kt.num("checkpoint_every", c.checkpoint_every);
+        kt.num("log_every", c.log_every);
+        kt.num("time_limit_min", c.time_limit_min);
+        kt.done();
+    }
+    if (const json* v = k.get("val")) {
+        Keys kv(*v, source + ": val");
+        kv.text("root", c.val_root);
+        kv.text("split", c.val_split);
+        kv.num("every", c.val_every);
+        kv.num("max_frames", c.val_max_frames);
+        kv.done();
+    }
+    k.done();
+    if (!c.models_root.empty()) c.models_root = resolve_config_path(c.models_root, base_dir);
+    if (!c.val_root.empty()) c.val_root = resolve_config_path(c.val_root, base_dir);
+    if (c.run_dir.empty()) c.run_dir = "runs/" + c.name;  // as the pose trainer: cwd-relative
+    validate(c, source);
+    return c;
+}
+
+std::string detector_config_to_json(const DetectorTrainConfig& cfg) {
+    return to_json(cfg).dump(2) + "\n";
+}
+
+bool is_detector_config(const std::string& path) {
+    const json j = parse_json_file(path);
+    return j.is_object() && j.contains("task") && j["task"] == "detector";
+}
+
+DetectorTrainConfig load_detector_config(const std::string& path,
+                                         const std::vector<std::string>& sets) {
+    std::ifstream f(path, std::ios::binary);
+    G2L_CHECK(f.good(), "load_detector_config: cannot open config file '", path, "'");
+    std::ostringstream text;
+    text << f.rdbuf();
+    const std::string dir = fs::absolute(path).parent_path().lexically_normal().string();
+    return parse_detector_config(apply_sets_to_json(text.str(), sets, path), path, dir);
+}
+
+// ---------------------------------------------------------------- targets and loss
+DetTargets make_detector_targets(const std::vector<DetBox>& boxes, int K, int w, int h,
+                                 int stride) {
+    G2L_CHECK(K > 0 && w > 0 && h > 0 && stride > 0, "make_detector_targets: bad sizes K ", K,
+              ", ", w, " x ", h, ", stride ", stride);
+    DetTargets t;
+    const size_t plane = size_t(w) * size_t(h);
+    t.heat.assign(size_t(K) * plane, 0.f);
+    t.size.assign(2 * plane, 0.f);
+    t.offset.assign(2 * plane, 0.f);
+    t.mask.assign(plane, 0.f);
+    for (const DetBox& b : boxes) {
+        G2L_CHECK(b.cls >= 0 && b.cls < K, "make_detector_targets: class ", b.cls,
+                  " outside [0, ", K, ")");
+        if (!(b.w > 0 && b.h > 0) || !std::isfinite(b.x) || !std::isfinite(b.y)) continue;
+        const float cx = (b.x + 0.5f * b.w) / float(stride), cy = (b.y + 0.5f * b.h) / float(stride);
+        const int ix = int(std::floor(cx)), iy = int(std::floor(cy));
+        if (ix < 0 || iy < 0 || ix >= w || iy >= h) continue;
+        const float bw = b.w / float(stride), bh = b.h / float(stride);
+        const float sigma = std::max(0.7f, 0.1f * std::sqrt(bw * bh));
+        const int r = int(std::ceil(3 * sigma));
+        float* heat = t.heat.data() + size_t(b.cls) * plane;
+        for (int y = std::max(0, iy - r); y <= std::min(h - 1, iy + r); ++y)
+            for (int x = std::max(0, ix - r); x <= std::min(w - 1, ix + r); ++x) {
+                const float d2 = float((x - ix) * (x - ix) + (y - iy) * (y - iy));
+                const float g = x == ix && y == iy ? 1.f : std::exp(-d2 / (2 * sigma * sigma));
+                float& v = heat[size_t(y) * size_t(w) + size_t(x)];
+                v = std::max(v, g);
+            }
+        const size_t i = size_t(iy) * size_t(w) + size_t(ix);
+        t.mask[i] = 1.f;
+        t.size[i] = std::log(bw);
+        t.size[plane + i] = std::log(bh);
+        t.offset[i] = cx - float(ix);
+        t.offset[plane + i] = cy - float(iy);
+    }
+    return t;
+}
+
+Tensor detector_loss(const nn::DetOut& out, const std::vector<DetTargets>& targets,
+                     double w_heat, double w_size, double w_offset, double* heat_loss,
+                     double* size_loss, double* offset_loss) {
+    G2L_CHECK(out.heat.defined() && out.heat.dim() == 4, "detector_loss: bad heat output");
+    const int64_t B = out.heat.size(0), K = out.heat.size(1), H = out.heat.size(2),
+                  W = out.heat.size(3);
+    G2L_CHECK(int64_t(targets.size()) == B, "detector_loss: ", targets.size(),
+              " targets for a batch of ", B);
+    const size_t plane = size_t(H) * size_t(W);
+    Tensor gt = Tensor::empty({B, K, H, W}), pos = Tensor::empty({B, K, H, W});
+    Tensor negw = Tensor::empty({B, K, H, W});
+    Tensor st = Tensor::empty({B, 2, H, W}), ot = Tensor::empty({B, 2, H, W});
+    Tensor m = Tensor::empty({B, 1, H, W});
+    double npos = 0;
+    for (int64_t b = 0; b < B; ++b) {
+        const DetTargets& t = targets[size_t(b)];
+        G2L_CHECK(t.heat.size() == size_t(K) * plane && t.mask.size() == plane &&
+                      t.size.size() == 2 * plane && t.offset.size() == 2 * plane,
+                  "detector_loss: targets of sample ", b, " do not match the ", K, " x ", H,
+                  " x ", W, " output");
+        for (size_t i = 0; i < size_t(K) * plane; ++i) {
+            const float g = t.heat[i];
+            const size_t o = size_t(b) * size_t(K) * plane + i;
+            gt.data<float>()[o] = g;
+            const bool p = g >= 1.f;
+            pos.data<float>()[o] = p ? 1.f : 0.f;
+            const float q = 1.f - g;
+            negw.data<float>()[o] = p ? 0.f : q * q * q * q;
+            npos += p;
+        }
+        std::copy(t.size.begin(), t.size.end(), st.data<float>() + size_t(b) * 2 * plane);
+        std::copy(t.offset.begin(), t.offset.end(), ot.data<float>() + size_t(b) * 2 * plane);
+        std::copy(t.mask.begin(), t.mask.end(), m.data<float>() + size_t(b) * plane);
+    }
+    const double norm = 1.0 / std::max(1.0, npos);
+    // Penalty-reduced focal loss (CenterNet): -(1-p)^2 log p at centres,
+    // -(1-g)^4 p^2 log(1-p) elsewhere; p clamped away from 0 and 1.
+    const Tensor p = nn::clamp(nn::sigmoid(out.heat), 1e-4, 1 - 1e-4);
+    const Tensor one_minus = 1.0 - p;
+    const Tensor lpos = pos * nn::log(p) * nn::square(one_minus);
+    const Tensor lneg = negw * nn::log(one_minus) * nn::square(p);
+    const Tensor Lh = nn::sum(lpos + lneg) * (-norm);
+    const Tensor Ls = nn::sum(m * nn::abs(out.size - st)) * norm;
+    const Tensor Lo = nn::sum(m * nn::abs(out.offset - ot)) * norm;
+    if (heat_loss) *heat_loss = Lh.item<double>();
+    if (size_loss) *size_loss = Ls.item<double>();
+    if (offset_loss) *offset_loss = Lo.item<double>();
+    return Lh * w_heat + Ls * w_size + Lo * w_offset;
+}
+
+// ---------------------------------------------------------------- evaluation
+namespace {
+
+double iou(float ax, float ay, float aw, float ah, float bx, float by, float bw, float bh) {
+    const float x0 = std::max(ax, bx), y0 = std::max(ay, by);
+    const float x1 = std::min(ax + aw, bx + bw), y1 = std::min(ay + ah, by + bh);
+    const float inter = std::max(0.f, x1 - x0) * std::max(0.f, y1 - y0);
+    const float uni = aw * ah + bw * bh - inter;
+    return uni > 0 ? double(inter / uni) : 0.0;
+}
+
+}  // namespace
+
+DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::Dataset& ds,
+                                     double min_visib, float score_threshold, int max_frames,
+                                     bool progress) {
+    G2L_CHECK(det.net, "evaluate_detector: no network");
+    std::map<int, int> cls;
+    for (size_t i = 0; i < det.object_ids.size(); ++i) cls[det.object_ids[i]] = int(i);
+    DetectorEvalResult r;
+    r.rows.resize(det.object_ids.size());
+    for (size_t i = 0; i < det.object_ids.size(); ++i) r.rows[i].obj_id = det.object_ids[i];
+    std::vector<size_t> frames;
+    for (size_t f = 0; f < ds.frames().size(); ++f)
+        if (!ds.frames()[f].rgb_path.empty()) frames.push_back(f);
+    G2L_CHECK(!frames.empty(), "evaluate_detector: the dataset '", ds.root(),
+              "' has no frame with an RGB image");
+    if (max_frames > 0 && int(frames.size()) > max_frames) {
+        std::vector<size_t> keep;
+        for (int i = 0; i < max_frames; ++i)
+            keep.push_back(frames[size_t(i) * frames.size() / size_t(max_frames)]);
+        frames = keep;
+    }
+    double ms = 0;
+    std::unique_ptr<data::Renderer> renderer;
+    data::RenderOutput ro;
+    for (size_t fi = 0; fi < frames.size(); ++fi) {
+        const data::Frame& fr = ds.frames()[frames[fi]];
+        const data::Image img = ds.load_rgb(fr);
+        G2L_CHECK(img.channels == 3, "evaluate_detector: '", fr.rgb_path, "' is not an RGB image");
+        const auto t0 = Clock::now();
+        const std::vector<nn::Detection> dets =
+            nn::detect(*det.net, det.downscale, img.data.data(), img.w, img.h, 0.01f, 10);
+        ms += std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+        // Visible masks: from the dataset, else rendered from the GT poses of the frame.
+        bool rendered = false;
+        auto ensure_render = [&]() {
+            if (rendered) return;
+            rendered = true;
+            geom::Intrinsics K = fr.K;
+            K.width = img.w;
+            K.height = img.h;
+            if (!renderer || renderer->intrinsics().width != K.width ||
+                renderer->intrinsics().height != K.height || renderer->intrinsics().fx != K.fx ||
+                renderer->intrinsics().fy != K.fy || renderer->intrinsics().cx != K.cx ||
+                renderer->intrinsics().cy != K.cy)
+                renderer = std::make_unique<data::Renderer>(K);
+            std::vector<data::RenderObject> objs;
+            for (size_t k = 0; k < fr.instances.size(); ++k) {
+                const data::Instance& in = fr.instances[k];
+                if (!ds.models().count(in.obj_id)) continue;
+                data::RenderObject o;
+                o.mesh = &ds.load_model_mesh(in.obj_id);
+                o.pose = in.pose;
+                o.instance_id = int32_t(k) + 1;
+                objs.push_back(o);
+            }
+            data::RenderOptions opt;
+            opt.shade = false;
+            renderer->render(objs, opt, ro);
+        };
+        // Greedy one-to-one matching for precision, per class, by score.
+        std::vector<bool> gt_used(fr.instances.size(), false);
+        for (const nn::Detection& d : dets) {
+            if (d.score < score_threshold) continue;
+            DetectorEvalRow& row = r.rows[size_t(d.cls)];
+            ++row.detections;
+            int best = -1;
+            double best_iou = 0.5;
+            for (size_t k = 0; k < fr.instances.size(); ++k) {
+                const data::Instance& in = fr.instances[k];
+                auto it = cls.find(in.obj_id);
+                if (gt_used[k] || it == cls.end() || it->second != d.cls) continue;
+                const geom::Box2i& b = in.bbox_visib.empty() ? in.bbox_obj : in.bbox_visib;
+                const double v = iou(d.x, d.y, d.w, d.h, float(b.x), float(b.y), float(b.w),
+                                     float(b.h));
+                if (v >= best_iou) best_iou = v, best = int(k);
+            }
+            if (best >= 0) {
+                gt_used[size_t(best)] = true;
+                ++row.true_detections;
+            }
+        }
+        for (size_t k = 0; k < fr.instances.size(); ++k) {
+            const data::Instance& in = fr.instances[k];
+            auto it = cls.find(in.obj_id);
+            if (it == cls.end()) continue;
+            if (in.visib_fract >= 0 && in.visib_fract < min_visib) continue;
+            const geom::Box2i& b = in.bbox_visib.empty() ? in.bbox_obj : in.bbox_visib;
+            if (b.empty()) continue;
+            DetectorEvalRow& row = r.rows[size_t(it->second)];
+            ++row.instances;
+            const nn::Detection* best = nullptr;  // the class's best: what the pipeline uses
+            for (const nn::Detection& d : dets)
+                if (d.cls == it->second && (!best || d.score > best->score)) best = &d;
+            if (!best) continue;
+            if (iou(best->x, best->y, best->w, best->h, float(b.x), float(b.y), float(b.w),
+                    float(b.h)) >= 0.5)
+                ++row.found;
+            const int u = int(std::floor(best->peak_x)), v = int(std::floor(best->peak_y));
+            if (u < 0 || v < 0 || u >= img.w || v >= img.h) continue;
+            bool on = false;
+            if (!in.mask_visib_path.empty()) {
+                const data::Image m = ds.load_mask(fr, in);
+                on = m.w == img.w && m.h == img.h && m.data[size_t(v) * size_t(m.w) + size_t(u)] != 0;
+            } else {
+                ensure_render();
+                on = ro.instance[size_t(v) * size_t(img.w) + size_t(u)] == int32_t(k) + 1;
+            }
+            row.peak_on_mask += on;
+        }
+        ++r.frames;
+        if (progress && (fi + 1) % 20 == 0)
+            std::fprintf(stderr, "  detector eval: %zu / %zu frames\n", fi + 1, frames.size());
+    }
+    int n = 0;
+    for (const DetectorEvalRow& row : r.rows) {
+        r.total.instances += row.instances;
+        r.total.found += row.found;
+        r.total.peak_on_mask += row.peak_on_mask;
+        r.total.detections += row.detections;
+        r.total.true_detections += row.true_detections;
+        if (row.instances == 0) continue;
+        ++n;
+        r.mean_recall += row.recall();
+        r.mean_precision += row.precision();
+        r.mean_peak_rate += row.peak_rate();
+    }
+    if (n) r.mean_recall /= n, r.mean_precision /= n, r.mean_peak_rate /= n;
+    r.ms_per_frame = r.frames ? ms / r.frames : 0;
+    return r;
+}
+
+std::vector<data::Detection> run_detector_on(const nn::LoadedDetector& det, const data::Dataset& ds,
+                                             float min_score) {
+    G2L_CHECK(det.net, "run_detector_on: no network");
+    std::vector<data::Detection> out;
+    for (const data::Frame& fr : ds.frames()) {
+        if (fr.rgb_path.empty()) continue;
+        int scene_id = -1;
+        try {
+            scene_id = std::stoi(fr.scene);
+        } catch (const std::exception&) {
+            G2L_CHECK(false, "run_detector_on: scene '", fr.scene, "' is not a number (BOP scene "
+                             "ids are), so detections cannot be matched to it");
+        }
+        const data::Image img = ds.load_rgb(fr);
+        G2L_CHECK(img.channels == 3, "run_detector_on: '", fr.rgb_path, "' is not an RGB image");
+        const auto t0 = Clock::now();
+        const auto dets = nn::detect(*det.net, det.downscale, img.data.data(), img.w, img.h,
+                                     min_score, 3);
+        const double secs = std::chrono::duration<double>(Clock::now() - t0).count();
+        for (const nn::Detection& d : dets) {
+            data::Detection o;
+            o.scene_id = scene_id;
+            o.image_id = fr.image_id;
+            o.obj_id = det.object_ids[size_t(d.cls)];
+            o.x = d.x, o.y = d.y, o.w = d.w, o.h = d.h;
+            o.score = d.score;
+            o.time = secs;
+            o.peak_x = d.peak_x, o.peak_y = d.peak_y;
+            out.push_back(o);
+        }
+    }
+    return out;
+}
+
+std::string detector_eval_table(const DetectorEvalResult& r) {
+    std::ostringstream o;
+    char line[256];
+    std::snprintf(line, sizeof line, "%8s %9s %10s %13s %11s %10s\n", "obj_id", "instances",
+                  "recall@.5", "precision@.5", "peak_on_obj", "dets>=thr");
+    o << line;
+    for (const DetectorEvalRow& row : r.rows) {
+        std::snprintf(line, sizeof line, "%8d %9d %10.1f %13.1f %11.1f %10d\n", row.obj_id,
+                      row.instances, 100 * row.recall(), 100 * row.precision(),
+                      100 * row.peak_rate(), row.detections);
+        o << line;
+    }
+    std::snprintf(line, sizeof line, "%8s %9d %10.1f %13.1f %11.1f %10d\n", "mean",
+                  r.total.instances, 100 * r.mean_recall, 100 * r.mean_precision,
+                  100 * r.mean_peak_rate, r.total.detections);
+    o << line;
+    std::snprintf(line, sizeof line, "%d frames, %.1f ms per frame (detector)\n", r.frames,
+                  r.ms_per_frame);
+    o << line;
+    return o.str();
+}
+
+// ---------------------------------------------------------------- training
+namespace {
+
+struct DetSample {
+    std::vector<uint8_t> rgb;  // H x W x 3 at the detector's input resolution
+    std::vector<DetBox> boxes;
+};
+
+// Colour gain / brightness, grey, Gaussian noise, 3x3 box blur: in place.
+void augment(std::vector<uint8_t>& rgb, int w, int h, const DetectorTrainConfig& c, Rng& rng) {
+    float gain[3], bias = float(rng.uniform(-c.color_jitter, c.color_jitter) * 255 * 0.5);
+    const float g0 = float(rng.uniform(1 - c.color_jitter, 1 + c.color_jitter));
+    for (float& g : gain) g = g0 * float(rng.uniform(1 - 0.5 * c.color_jitter, 1 + 0.5 * c.color_jitter));
+    const bool gray = rng.uniform() < c.gray_prob;
+    const float noise = float(rng.uniform(0, c.noise_std));
+    const size_t n = size_t(w) * size_t(h);
+    for (size_t i = 0; i < n; ++i) {
+        float v[3];
+        for (int k = 0; k < 3; ++k) v[k] = float(rgb[i * 3 + size_t(k)]) * gain[k] + bias;
+        if (gray) v[0] = v[1] = v[2] = (v[0] + v[1] + v[2]) / 3;
+        for (int k = 0; k < 3; ++k) {
+            const float x = v[k] + (noise > 0 ? noise * float(rng.normal()) : 0.f);
+            rgb[i * 3 + size_t(k)] = uint8_t(std::clamp(x, 0.f, 255.f));
+        }
+    }
+    if (rng.uniform() < c.blur_prob) {
+        std::vector<uint8_t> src = rgb;
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x)
+                for (int k = 0; k < 3; ++k) {
+                    int s = 0, m = 0;
+                    for (int dy = -1; dy <= 1; ++dy)
+                        for (int dx = -1; dx <= 1; ++dx) {
+                            const int yy = y + dy, xx = x + dx;
+                            if (yy < 0 || yy >= h || xx < 0 || xx >= w) continue;
+                            s += src[(size_t(yy) * size_t(w) + size_t(xx)) * 3 + size_t(k)];
+                            ++m;
+                        }
+                    rgb[(size_t(y) * size_t(w) + size_t(x)) * 3 + size_t(k)] = uint8_t(s / m);
+                }
+    }
+}
+
+// A "dead leaves" clutter texture (random rectangles and discs of random colours, sizes spread
+// over a log scale, painted back to front) replaces every pixel that shows no annotated object:
+// real frames show cluttered desks, the renders a plain table.
+void clutter_background(std::vector<uint8_t>& rgb, const std::vector<uint16_t>& mask, int w,
+                        int h, Rng& rng) {
+    std::vector<uint8_t> bg(size_t(w) * size_t(h) * 3);
+    for (size_t i = 0; i < bg.size(); i += 3) {
+        bg[i] = uint8_t(rng.below(256));
+        bg[i + 1] = bg[i];
+        bg[i + 2] = bg[i];
+    }
+    const int shapes = int(rng.randint(40, 160));
+    for (int s = 0; s < shapes; ++s) {
+        const double size = std::exp(rng.uniform(std::log(3.0), std::log(0.6 * std::max(w, h))));
+        const double cx = rng.uniform(-0.1 * w, 1.1 * w), cy = rng.uniform(-0.1 * h, 1.1 * h);
+        const double aspect = std::exp(rng.uniform(-1.2, 1.2));
+        const double rw = size * aspect * 0.5, rh = size / aspect * 0.5;
+        const bool disc = rng.uniform() < 0.5;
+        uint8_t col[3];
+        const double sat = rng.uniform();
+        const double base = rng.uniform(0, 255);
+        for (uint8_t& c : col) c = uint8_t(std::clamp(base + sat * rng.uniform(-128, 128), 0.0, 255.0));
+        const int x0 = std::max(0, int(cx - rw)), x1 = std::min(w - 1, int(cx + rw));
+        const int y0 = std::max(0, int(cy - rh)), y1 = std::min(h - 1, int(cy + rh));
+        for (int y = y0; y <= y1; ++y)
+            for (int x = x0; x <= x1; ++x) {
+                if (disc) {
+                    const double dx = (x - cx) / rw, dy = (y - cy) / rh;
+                    if (dx * dx + dy * dy > 1) continue;
+                }
+                uint8_t* p = &bg[(size_t(y) * size_t(w) + size_t(x)) * 3];
+                p[0] = col[0], p[1] = col[1], p[2] = col[2];
+            }
+    }
+    for (size_t i = 0; i < size_t(w) * size_t(h); ++i)
+        if (mask[i] == 0)
+            for (int k = 0; k < 3; ++k) rgb[i * 3 + size_t(k)] = bg[i * 3 + size_t(k)];
+}
+
+// The scene at the detector's input resolution: the camera scaled by 1/downscale.
+data::SceneConfig input_scene(const DetectorTrainConfig& c) {
+    data::SceneConfig s = c.scene;
+    const double k = 1.0 / c.downscale;
+    s.camera.fx *= k, s.camera.fy *= k;
+    s.camera.cx = (s.camera.cx + 0.5) * k - 0.5;
+    s.camera.cy = (s.camera.cy + 0.5) * k - 0.5;
+    s.camera.width /= c.downscale;
+    s.camera.height /= c.downscale;
+    s.target_obj_ids = c.object_ids;
+    s.noise.enabled = false;  // the detector sees colour only
+    return s;
+}
+
+}  // namespace
+
+DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg,
+                                           const DetectorTrainOptions& opt) {
+    if (cfg.threads > 0) set_num_threads(cfg.threads);
+    const std::string run_dir = opt.resume_dir.empty() ? cfg.run_dir : opt.resume_dir;
+    prepare_run_dir(run_dir, !opt.resume_dir.empty(), opt.force);
+
+    // ---- models and the scene ----
+    data::BopOptions bo;
+    bo.obj_ids = cfg.object_ids;
+    const data::Dataset models = data::open_bop_models(cfg.models_root, bo);
+    std::vector<data::SceneModel> sm;
+    for (const int id : cfg.object_ids) {
+        G2L_CHECK(models.models().count(id), "data.object_ids: no model ", id, " in ",
+                  cfg.models_root);
+        const geom::Mesh& mesh = models.load_model_mesh(id);
+        G2L_CHECK(mesh.colors.rows() > 0, "data.object_ids: model ", id, " of ", cfg.models_root,
+                  " has no vertex colours; the detector learns from colour renders");
+        sm.push_back({id, &mesh});
+    }
+    const data::SceneConfig scene = input_scene(cfg);
+    const int W = scene.camera.width, H = scene.camera.height;
+    G2L_CHECK(W % 16 == 0 && H % 16 == 0, "data.scene.camera: the detector input ", W, " x ", H,
+              " (camera / downscale) must be a multiple of 16 in both sizes");
+    std::map<int, int> cls;
+    for (size_t i = 0; i < cfg.object_ids.size(); ++i) cls[cfg.object_ids[i]] = int(i);
+    const int K = int(cfg.object_ids.size());
+    std::unique_ptr<data::BopDataset> val;
+    if (!cfg.val_root.empty()) {
+        data::BopOptions vo;
+        vo.obj_ids = cfg.object_ids;
+        val = std::make_unique<data::BopDataset>(data::open_bop(cfg.val_root, cfg.val_split, vo));
+    }
+
+    nn::DetectorConfig dc;
+    dc.num_classes = K;
+    dc.width = cfg.width;
+    dc.seed = cfg.seed;
+    nn::Detector net(dc);
+    nn::AdamOptions ao;
+    ao.lr = cfg.lr;
+    ao.beta1 = 0.9;
+    ao.beta2 = 0.999;
+    nn::ParamGroup group;
+    group.name = "detector";
+    group.params = net.named_parameters();
+    nn::Adam adam({group}, ao);
+
+    int64_t step = 0;
+    double seconds_before = 0;
+    if (!opt.resume_dir.empty()) {
+        const std::string path = (fs::path(run_dir) / "last.g2l").string();
+        const Checkpoint ck = load_checkpoint(path);
+        const json meta = parse_json_strict(ck.meta_json, path + " (metadata)");
+        G2L_CHECK(meta.value("format", "") == kCheckpointFormat, "'", path,
+                  "' is not a detector training checkpoint");
+        step = meta.at("step").get<int64_t>();
+        seconds_before = meta.value("seconds", 0.0);
+        std::map<std::string, Tensor> sd;
+        for (const auto& [name, t] : ck.tensors)
+            if (name.rfind("model.", 0) == 0) sd[name.substr(6)] = t;
+        net.load_state_dict(sd, true);
+        adam.load_state(ck.tensors, step);
+        G2L_CHECK(step < cfg.steps, "--resume '", run_dir, "': the run already finished its ",
+                  cfg.steps, " steps");
+    } else {
+        std::ofstream c(fs::path(run_dir) / "config.json");
+        c << detector_config_to_json(cfg);
+        G2L_CHECK(c.good(), "cannot write '", (fs::path(run_dir) / "config.json").string(), "'");
+        std::ofstream t(fs::path(run_dir) / "steps.jsonl", std::ios::trunc);
+        G2L_CHECK(t.good(), "cannot write the steps log in '", run_dir, "'");
+    }
+    std::ofstream log(fs::path(run_dir) / "steps.jsonl", std::ios::app);
+    const auto save = [&](const std::string& name) {
+        std::vector<std::pair<std::string, Tensor>> ts;
+        for (const auto& [n, t] : net.state_dict()) ts.emplace_back("model." + n, t);
+        for (auto& p : adam.state_tensors()) ts.push_back(p);
+        const json meta{{"format", kCheckpointFormat}, {"step", step},
+                        {"seconds", seconds_before}, {"config", json::parse(detector_config_to_json(cfg))}};
+        save_checkpoint((fs::path(run_dir) / name).string(), ts, meta.dump());
+        nn::save_detector((fs::path(run_dir) / "detector.g2l").string(), net, cfg.object_ids,
+                      cfg.downscale);
+    };
+
+    // One generator per batch producer; frame index = step * batch + b (resumable exactly).
+    data::SceneGenerator gen(scene, sm);
+    const int hw = W / nn::Detector::kStride, hh = H / nn::Detector::kStride;
+    auto make_batch = [&](int64_t s) {
+        std::vector<DetSample> batch(size_t(cfg.batch));
+        data::RenderedFrame fr;
+        for (int b = 0; b < cfg.batch; ++b) {
+            gen.render_frame(s * cfg.batch + b, fr, 1);
+            DetSample& d = batch[size_t(b)];
+            d.rgb = fr.rgb;
+            Rng rng(mix_seed(mix_seed(cfg.seed, uint64_t(s)), uint64_t(b) + 17));
+            if (rng.uniform() < cfg.clutter_prob) clutter_background(d.rgb, fr.mask, W, H, rng);
+            augment(d.rgb, W, H, cfg, rng);
+            for (const data::RenderedInstance& in : fr.instances) {
+                auto it = cls.find(in.obj_id);
+                if (it == cls.end() || in.visib_fract < cfg.min_visib_fract || in.bbox_visib.empty())
+                    continue;
+                d.boxes.push_back({it->second, float(in.bbox_visib.x), float(in.bbox_visib.y),
+                                   float(in.bbox_visib.w), float(in.bbox_visib.h)});
+            }
+        }
+        return batch;
+    };
+
+    DetectorTrainSummary sum;
+    sum.run_dir = run_dir;
+    const auto t0 = Clock::now();
+    const int64_t start_step = step;
+    double loss_acc = 0, lh_acc = 0, ls_acc = 0, lo_acc = 0;
+    int acc_n = 0;
+    std::future<std::vector<DetSample>> next =
+        std::async(std::launch::async, make_batch, step);
+    auto elapsed_min = [&]() {
+        return (seconds_before + std::chrono::duration<double>(Clock::now() - t0).count()) / 60;
+    };
+    auto run_val = [&]() {
+        if (!val) return;
+        nn::LoadedDetector ld;
+        ld.downscale = cfg.downscale;
+        ld.object_ids = cfg.object_ids;
+        // Evaluate a copy in eval mode (the training net keeps its mode and state).
+        ld.net = std::make_unique<nn::Detector>(dc);
+        ld.net->load_state_dict(net.state_dict(), true);
+        ld.net->eval();
+        sum.val = evaluate_detector(ld, *val, 0.1, 0.3f, cfg.val_max_frames, false);
+        sum.evaluated = true;
+        if (opt.progress)
+            std::printf("validation at step %lld on %s/%s:\n%s", (long long)step,
+                        cfg.val_root.c_str(), cfg.val_split.c_str(),
+                        detector_eval_table(sum.val).c_str());
+        log << json{{"step", step}, {"val_mean_recall", sum.val.mean_recall},
+                    {"val_mean_precision", sum.val.mean_precision},
+                    {"val_mean_peak_rate", sum.val.mean_peak_rate}}
+                   .dump()
+            << "\n";
+        log.flush();
+    };
+    bool previewed = !opt.resume_dir.empty();
+    while (step < cfg.steps) {
+        std::vector<DetSample> batch = next.get();
+        if (!previewed) {  // what the detector trains on, with its target boxes
+            previewed = true;
+            for (int b = 0; b < std::min(cfg.batch, 4); ++b) {
+                data::Image im;
+                im.w = W, im.h = H, im.channels = 3;
+                im.data = batch[size_t(b)].rgb;
+                for (const DetBox& d : batch[size_t(b)].boxes) {
+                    const data::Rgb c{0, 255, 0};
+                    data::draw_line(&im, d.x, d.y, d.x + d.w, d.y, c, 1);
+                    data::draw_line(&im, d.x + d.w, d.y, d.x + d.w, d.y + d.h, c, 1);
+                    data::draw_line(&im, d.x + d.w, d.y + d.h, d.x, d.y + d.h, c, 1);
+                    data::draw_line(&im, d.x, d.y + d.h, d.x, d.y, c, 1);
+                }
+                data::save_png((fs::path(run_dir) / cat("preview_", b, ".png")).string(), im);
+            }
+        }
+        if (step + 1 < cfg.steps) next = std::async(std::launch::async, make_batch, step + 1);
+        Tensor x = Tensor::empty({cfg.batch, 3, H, W});
+        std::vector<DetTargets> targets;
+        for (int b = 0; b < cfg.batch; ++b) {
+            const std::vector<uint8_t>& rgb = batch[size_t(b)].rgb;
+            float* px = x.data<float>() + size_t(b) * 3 * size_t(H) * size_t(W);
+            for (int k = 0; k < 3; ++k)
+                for (size_t i = 0; i < size_t(H) * size_t(W); ++i)
+                    px[size_t(k) * size_t(H) * size_t(W) + i] =
+                        (float(rgb[i * 3 + size_t(k)]) / 255.f - 0.5f) / 0.25f;
+            targets.push_back(make_detector_targets(batch[size_t(b)].boxes, K, hw, hh));
+        }
+        // Step decay: x0.1 at 70% and 90% of the steps.
+        adam.set_lr(cfg.lr * (step >= cfg.steps * 9 / 10 ? 0.01 : step >= cfg.steps * 7 / 10 ? 0.1 : 1.0));
+        net.train();
+        adam.zero_grad();
+        double lh = 0, ls = 0, lo = 0;
+        const nn::DetOut out = net.forward(x);
+        Tensor loss = detector_loss(out, targets, cfg.w_heat, cfg.w_size, cfg.w_offset, &lh, &ls, &lo);
+        const double lv = loss.item<double>();
+        G2L_CHECK(std::isfinite(lv), "detector training: non-finite loss at step ", step + 1);
+        loss.backward();
+        adam.step();
+        ++step;
+        loss_acc += lv, lh_acc += lh, ls_acc += ls, lo_acc += lo, ++acc_n;
+        sum.final_loss = lv;
+        const double secs = std::chrono::duration<double>(Clock::now() - t0).count();
+        if (step % cfg.log_every == 0 || step == cfg.steps) {
+            const json rec{{"step", step},
+                           {"loss", loss_acc / acc_n},
+                           {"heat", lh_acc / acc_n},
+                           {"size", ls_acc / acc_n},
+                           {"offset", lo_acc / acc_n},
+                           {"images_per_s", double((step - start_step) * cfg.batch) / std::max(1e-9, secs)},
+                           {"minutes", elapsed_min()}};
+            log << rec.dump() << "\n";
+            log.flush();
+            G2L_CHECK(log.good(), "cannot write '", run_dir, "/steps.jsonl' (disk full?)");
+            if (opt.progress)
+                std::printf("step %lld/%lld  loss %.4f (heat %.4f size %.4f offset %.4f)  %.1f img/s  %.1f min\n",
+                            (long long)step, (long long)cfg.steps, loss_acc / acc_n, lh_acc / acc_n,
+                            ls_acc / acc_n, lo_acc / acc_n,
+                            double((step - start_step) * cfg.batch) / std::max(1e-9, secs),
+                            elapsed_min());
+            std::fflush(stdout);
+            loss_acc = lh_acc = ls_acc = lo_acc = 0;
+            acc_n = 0;
+        }
+        const bool stop_flag = opt.stop_flag && opt.stop_flag->load();
+        const bool max_hit = opt.max_steps > 0 && step >= opt.max_steps;
+        const bool time_hit = cfg.time_limit_min > 0 && elapsed_min() >= cfg.time_limit_min;
+        if (step % cfg.checkpoint_every == 0 || step == cfg.steps || stop_flag || max_hit ||
+            time_hit) {
+            const double now = std::chrono::duration<double>(Clock::now() - t0).count();
+            const double keep = seconds_before;
+            seconds_before += now;
+            save("last.g2l");
+            seconds_before = keep;
+        }
+        if (cfg.val_every > 0 && step % cfg.val_every == 0 && step < cfg.steps) run_val();
+        if (stop_flag) {
+            sum.interrupted = true;
+            break;
+        }
+        if (max_hit || time_hit) {
+            sum.stopped_early = true;
+            break;
+        }
+    }
+    if (next.valid()) next.wait();
+    const double secs = std::chrono::duration<double>(Clock::now() - t0).count();
+    sum.steps = step;
+    sum.images_per_s = double((step - start_step) * cfg.batch) / std::max(1e-9, secs);
+    if (step >= cfg.steps) run_val();
+    return sum;
+}
+
+}  // namespace g2l::train

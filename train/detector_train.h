@@ -1,0 +1,153 @@
+// SPDX-License-Identifier: MIT
+// Training and evaluating the 2D detector (nn/models/detector.h) of G2L-Net's global
+// localization: RGB renders of coloured meshes (data/scene.h) with colour, noise, blur and
+// grey-scale augmentation, CenterNet targets (a Gaussian peak per object centre, log box size and
+// sub-cell offset at the centre cell), the penalty-reduced focal loss, Adam; the run directory,
+// checkpoints and --resume of the pose trainer. A detector config is a JSON file with
+// "task": "detector" (docs/config.md, configs/lmo_detector.json).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/tensor.h"
+#include "data/dataset.h"
+#include "data/detections.h"
+#include "data/scene.h"
+#include "nn/models/detector.h"
+
+namespace g2l::train {
+
+struct DetectorTrainConfig {
+    std::string name = "detector";
+    uint64_t seed = 1;
+    int threads = 0;
+    std::string device = "cpu";
+    std::string run_dir;
+    // data
+    std::string models_root;        ///< BOP root whose models/ (with vertex colours) are rendered
+    std::vector<int> object_ids;    ///< classes, in heat-map order
+    int downscale = 2;              ///< the detector sees the image at 1/downscale
+    double min_visib_fract = 0.1;   ///< less visible instances get no target
+    data::SceneConfig scene;        ///< at full resolution (the camera of the real images)
+    // augmentation (training only)
+    double color_jitter = 0.3;      ///< per-channel gain and brightness, +- this fraction
+    double noise_std = 6.0;         ///< Gaussian pixel noise (0..255 units), std up to this
+    double blur_prob = 0.3;         ///< probability of a 3x3 box blur
+    double gray_prob = 0.05;        ///< probability of a grey-scale image
+    /// Probability that every pixel without an annotated object is replaced by a random
+    /// "dead leaves" clutter texture (rectangles and discs of random colours and sizes).
+    double clutter_prob = 0.8;
+    // model
+    int width = 16;
+    // loss
+    double w_heat = 1.0, w_size = 0.1, w_offset = 1.0;
+    // optimisation
+    double lr = 2e-3;
+    int64_t steps = 4000;
+    int batch = 8;
+    int checkpoint_every = 250;
+    int log_every = 25;
+    double time_limit_min = 0;      ///< 0 = none; stop with a checkpoint after this much time
+    // validation on real images (optional: val_root empty = none)
+    std::string val_root, val_split = "test";
+    int val_every = 0;              ///< steps between validations (0 = only at the end)
+    int val_max_frames = 0;         ///< 0 = every frame
+};
+
+/// True when the JSON file at `path` has "task": "detector". Throws naming the file when it
+/// cannot be read or is not JSON.
+bool is_detector_config(const std::string& path);
+
+/// Reads a detector config (strict: unknown keys, wrong types and bad values throw naming the
+/// key), applies `--set key=value` overrides, resolves ${G2L_SHARED} paths.
+DetectorTrainConfig load_detector_config(const std::string& path,
+                                         const std::vector<std::string>& sets = {});
+DetectorTrainConfig parse_detector_config(const std::string& json_text, const std::string& source,
+                                          const std::string& base_dir);
+/// Every key, defaults included; parse_detector_config of it gives the same config.
+std::string detector_config_to_json(const DetectorTrainConfig& cfg);
+
+/// A box of class `cls` in the detector's input pixels (top-left corner and size).
+struct DetBox {
+    int cls = 0;
+    float x = 0, y = 0, w = 0, h = 0;
+};
+
+/// CenterNet targets of one image for an output grid of w x h cells (stride `stride`):
+/// heat [K, h, w] (1 at each centre cell, a Gaussian of sigma 0.1 sqrt(box cells) (>= 0.7)
+/// around it, max over objects), size [2, h, w] (log(box w / stride), log(box h / stride)),
+/// offset [2, h, w] (centre / stride - cell), mask [h, w] (1 at the centre cells). Boxes whose
+/// centre falls outside the grid or whose size is not positive are skipped.
+struct DetTargets {
+    std::vector<float> heat, size, offset, mask;
+};
+DetTargets make_detector_targets(const std::vector<DetBox>& boxes, int K, int w, int h,
+                                 int stride = nn::Detector::kStride);
+
+/// The loss of a batch: heat logits against stacked targets (focal loss, normalised by the
+/// number of centres), L1 on size and offset at the centre cells. Returns the total and writes
+/// the three parts (unweighted) when the pointers are given.
+Tensor detector_loss(const nn::DetOut& out, const std::vector<DetTargets>& targets,
+                     double w_heat, double w_size, double w_offset, double* heat_loss = nullptr,
+                     double* size_loss = nullptr, double* offset_loss = nullptr);
+
+/// Detector evaluation on real frames with GT boxes.
+struct DetectorEvalRow {
+    int obj_id = 0;
+    int instances = 0;      ///< GT instances (visib_fract >= min_visib)
+    int found = 0;          ///< the class's best detection overlaps the GT box with IoU >= 0.5
+    int peak_on_mask = 0;   ///< the class's best detection peaks on the instance's visible mask
+    int detections = 0;     ///< detections of this class with score >= score_threshold
+    int true_detections = 0;  ///< ... matched one-to-one to a GT box of the class (IoU >= 0.5)
+    double recall() const { return instances ? double(found) / instances : 0; }
+    double precision() const { return detections ? double(true_detections) / detections : 0; }
+    double peak_rate() const { return instances ? double(peak_on_mask) / instances : 0; }
+};
+struct DetectorEvalResult {
+    std::vector<DetectorEvalRow> rows;  ///< per object, in class order
+    DetectorEvalRow total;              ///< sums over objects (obj_id 0)
+    double mean_recall = 0, mean_precision = 0, mean_peak_rate = 0;  ///< mean over objects
+    int frames = 0;
+    double ms_per_frame = 0;            ///< detector time (input + network + decoding)
+};
+
+/// Evaluates on every frame of `ds` that has an RGB image (instances of the detector's objects
+/// with visib_fract >= min_visib). The visible masks come from the dataset when it has them,
+/// else from rendering the GT-posed models of the frame (the annotated objects occlude each
+/// other; unannotated clutter is not modelled, so such masks can be larger than the truth).
+DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::Dataset& ds,
+                                     double min_visib = 0.1, float score_threshold = 0.3f,
+                                     int max_frames = 0, bool progress = false);
+/// The detector on every frame of `ds` that has an RGB image: one data::Detection per class
+/// peak (scene_id from the scene folder name, image_id, obj_id, box, score, heat-map peak, the
+/// frame's detector time), as g2l_eval --boxes det feeds them to the pose evaluation. Throws
+/// for a scene name that is not a number (BOP scene ids are).
+std::vector<data::Detection> run_detector_on(const nn::LoadedDetector& det, const data::Dataset& ds,
+                                             float min_score = 0.05f);
+
+/// The table of a result (per object and mean), plain text.
+std::string detector_eval_table(const DetectorEvalResult& r);
+
+struct DetectorTrainOptions {
+    std::string resume_dir;
+    int64_t max_steps = 0;
+    bool progress = true;
+    bool force = false;
+    const std::atomic<bool>* stop_flag = nullptr;
+};
+struct DetectorTrainSummary {
+    std::string run_dir;
+    int64_t steps = 0;
+    bool interrupted = false, stopped_early = false;
+    double images_per_s = 0;
+    double final_loss = 0;
+    bool evaluated = false;
+    DetectorEvalResult val;
+};
+DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg,
+                                           const DetectorTrainOptions& opt);
+
+}  // namespace g2l::train

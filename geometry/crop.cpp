@@ -111,13 +111,19 @@ Box2i clip_box(const Box2i& b, int width, int height) {
     return {int(x0), int(y0), int(x1 - x0), int(y1 - y0)};
 }
 
-bool box_centre(const float* depth, int w, int h, const Intrinsics& K, const Box2i& box_in,
-                Eigen::Vector3d* centre) {
-    G2L_CHECK(depth != nullptr && w > 0 && h > 0, "box_centre: no depth image (", w, " x ", h, ")");
+namespace {
+void check_depth_and_camera(const char* op, const float* depth, int w, int h, const Intrinsics& K) {
+    G2L_CHECK(depth != nullptr && w > 0 && h > 0, op, ": no depth image (", w, " x ", h, ")");
     G2L_CHECK(std::isfinite(K.fx) && std::isfinite(K.fy) && K.fx > 0 && K.fy > 0 &&
                   std::isfinite(K.cx) && std::isfinite(K.cy),
-              "box_centre: intrinsics fx ", K.fx, ", fy ", K.fy, ", cx ", K.cx, ", cy ", K.cy,
+              op, ": intrinsics fx ", K.fx, ", fy ", K.fy, ", cx ", K.cx, ", cy ", K.cy,
               " (focal lengths must be finite and > 0)");
+}
+}  // namespace
+
+bool box_centre(const float* depth, int w, int h, const Intrinsics& K, const Box2i& box_in,
+                Eigen::Vector3d* centre) {
+    check_depth_and_camera("box_centre", depth, w, h, K);
     const Box2i box = clip_box(box_in, w, h);
     if (box.empty()) return false;
     auto valid = [](float z) { return z > 0 && std::isfinite(z); };
@@ -154,11 +160,7 @@ bool box_centre(const float* depth, int w, int h, const Intrinsics& K, const Box
 
 bool peak_centre(const float* depth, int w, int h, const Intrinsics& K, const Box2i& box_in,
                  double u, double v, Eigen::Vector3d* centre) {
-    G2L_CHECK(depth != nullptr && w > 0 && h > 0, "peak_centre: no depth image (", w, " x ", h, ")");
-    G2L_CHECK(std::isfinite(K.fx) && std::isfinite(K.fy) && K.fx > 0 && K.fy > 0 &&
-                  std::isfinite(K.cx) && std::isfinite(K.cy),
-              "peak_centre: intrinsics fx ", K.fx, ", fy ", K.fy, ", cx ", K.cx, ", cy ", K.cy,
-              " (focal lengths must be finite and > 0)");
+    check_depth_and_camera("peak_centre", depth, w, h, K);
     const Box2i box = clip_box(box_in, w, h);
     if (box.empty() || !std::isfinite(u) || !std::isfinite(v)) return false;
     auto valid = [](float z) { return z > 0 && std::isfinite(z); };

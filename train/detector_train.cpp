@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <future>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -110,8 +111,9 @@ json to_json(const DetectorTrainConfig& c) {
                   {"noise_std", c.noise_std},
                   {"blur_prob", c.blur_prob},
                   {"gray_prob", c.gray_prob},
-                  {"clutter_prob", c.clutter_prob}}},
-                {"model", {{"width", c.width}}},
+                  {"clutter_prob", c.clutter_prob},
+                  {"occluder_prob", c.occluder_prob}}},
+                {"model", {{"width", c.width}, {"init", c.init}}},
                 {"loss", {{"heat", c.w_heat}, {"size", c.w_size}, {"offset", c.w_offset}}},
                 {"optim", {{"lr", c.lr}}},
                 {"train",
@@ -143,6 +145,7 @@ void validate(const DetectorTrainConfig& c, const std::string& where) {
     frac("augment.blur_prob", c.blur_prob);
     frac("augment.gray_prob", c.gray_prob);
     frac("augment.clutter_prob", c.clutter_prob);
+    frac("augment.occluder_prob", c.occluder_prob);
     G2L_CHECK(std::isfinite(c.noise_std) && c.noise_std >= 0 && c.noise_std <= 128, where,
               ": 'augment.noise_std' must be in [0, 128], got ", c.noise_std);
     G2L_CHECK(c.width >= 4 && c.width <= 256, where, ": 'model.width' must be in [4, 256], got ",
@@ -182,62 +185,57 @@ DetectorTrainConfig parse_detector_config(const std::string& json_text, const st
     k.num("threads", c.threads);
     k.text("device", c.device);
     k.text("run_dir", c.run_dir);
-    if (const json* d = k.get("data")) {
-        Keys kd(*d, source + ": data");
+    // Each section: an object whose keys are read by fill(), unknown keys refused.
+    auto section = [&](const char* name, const std::function<void(Keys&)>& fill) {
+        if (const json* j = k.get(name)) {
+            Keys ks(*j, source + ": " + name);
+            fill(ks);
+            ks.done();
+        }
+    };
+    section("data", [&](Keys& kd) {
         kd.text("models_root", c.models_root);
         kd.ints("object_ids", c.object_ids);
         kd.num("downscale", c.downscale);
         kd.num("min_visib_fract", c.min_visib_fract);
         if (const json* s = kd.get("scene"))
             c.scene = data::parse_scene_config(s->dump(), source + ": data.scene");
-        kd.done();
-    }
-    if (const json* a = k.get("augment")) {
-        Keys ka(*a, source + ": augment");
+    });
+    section("augment", [&](Keys& ka) {
         ka.num("color_jitter", c.color_jitter);
         ka.num("noise_std", c.noise_std);
         ka.num("blur_prob", c.blur_prob);
         ka.num("gray_prob", c.gray_prob);
         ka.num("clutter_prob", c.clutter_prob);
-        ka.done();
-    }
-    if (const json* m = k.get("model")) {
-        Keys km(*m, source + ": model");
+        ka.num("occluder_prob", c.occluder_prob);
+    });
+    section("model", [&](Keys& km) {
         km.num("width", c.width);
-        km.done();
-    }
-    if (const json* l = k.get("loss")) {
-        Keys kl(*l, source + ": loss");
+        km.text("init", c.init);
+    });
+    section("loss", [&](Keys& kl) {
         kl.num("heat", c.w_heat);
         kl.num("size", c.w_size);
         kl.num("offset", c.w_offset);
-        kl.done();
-    }
-    if (const json* o = k.get("optim")) {
-        Keys ko(*o, source + ": optim");
-        ko.num("lr", c.lr);
-        ko.done();
-    }
-    if (const json* t = k.get("train")) {
-        Keys kt(*t, source + ": train");
+    });
+    section("optim", [&](Keys& ko) { ko.num("lr", c.lr); });
+    section("train", [&](Keys& kt) {
         kt.num("steps", c.steps);
         kt.num("batch", c.batch);
         kt.num("checkpoint_every", c.checkpoint_every);
         kt.num("log_every", c.log_every);
         kt.num("time_limit_min", c.time_limit_min);
-        kt.done();
-    }
-    if (const json* v = k.get("val")) {
-        Keys kv(*v, source + ": val");
+    });
+    section("val", [&](Keys& kv) {
         kv.text("root", c.val_root);
         kv.text("split", c.val_split);
         kv.num("every", c.val_every);
         kv.num("max_frames", c.val_max_frames);
-        kv.done();
-    }
+    });
     k.done();
     if (!c.models_root.empty()) c.models_root = resolve_config_path(c.models_root, base_dir);
     if (!c.val_root.empty()) c.val_root = resolve_config_path(c.val_root, base_dir);
+    if (!c.init.empty()) c.init = resolve_config_path(c.init, base_dir);
     if (c.run_dir.empty()) c.run_dir = "runs/" + c.name;  // as the pose trainer: cwd-relative
     validate(c, source);
     return c;
@@ -259,7 +257,12 @@ DetectorTrainConfig load_detector_config(const std::string& path,
     std::ostringstream text;
     text << f.rdbuf();
     const std::string dir = fs::absolute(path).parent_path().lexically_normal().string();
-    return parse_detector_config(apply_sets_to_json(text.str(), sets, path), path, dir);
+    // As the pose trainer: overrides apply to the full config (defaults included), so any key
+    // of docs/config.md can be set even when the file leaves it out.
+    DetectorTrainConfig c = parse_detector_config(text.str(), path, dir);
+    if (sets.empty()) return c;
+    return parse_detector_config(apply_sets_to_json(detector_config_to_json(c), sets, path), path,
+                                 dir);
 }
 
 // ---------------------------------------------------------------- targets and loss
@@ -648,8 +651,7 @@ data::SceneConfig input_scene(const DetectorTrainConfig& c) {
 
 }  // namespace
 
-DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg,
-                                           const DetectorTrainOptions& opt) {
+DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const TrainOptions& opt) {
     if (cfg.threads > 0) set_num_threads(cfg.threads);
     const std::string run_dir = opt.resume_dir.empty() ? cfg.run_dir : opt.resume_dir;
     prepare_run_dir(run_dir, !opt.resume_dir.empty(), opt.force);
@@ -713,6 +715,13 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg,
         G2L_CHECK(step < cfg.steps, "--resume '", run_dir, "': the run already finished its ",
                   cfg.steps, " steps");
     } else {
+        if (!cfg.init.empty()) {  // fine-tuning: the weights of an export, a fresh optimiser
+            const nn::LoadedDetector from = nn::load_detector(cfg.init);
+            G2L_CHECK(from.object_ids == cfg.object_ids && from.net->config().width == cfg.width,
+                      "model.init '", cfg.init, "': its objects / width differ from the config's "
+                      "(data.object_ids, model.width)");
+            net.load_state_dict(from.net->state_dict(), true);
+        }
         std::ofstream c(fs::path(run_dir) / "config.json");
         c << detector_config_to_json(cfg);
         G2L_CHECK(c.good(), "cannot write '", (fs::path(run_dir) / "config.json").string(), "'");
@@ -743,13 +752,46 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg,
             d.rgb = fr.rgb;
             Rng rng(mix_seed(mix_seed(cfg.seed, uint64_t(s)), uint64_t(b) + 17));
             if (rng.uniform() < cfg.clutter_prob) clutter_background(d.rgb, fr.mask, W, H, rng);
+            // Occluders: random-coloured discs and rectangles pasted over the objects; the
+            // visible masks (and so the target boxes and visible fractions) lose those pixels.
+            std::vector<uint16_t> vis = fr.mask;
+            if (cfg.occluder_prob > 0)
+                for (const data::RenderedInstance& in : fr.instances) {
+                    if (in.bbox_visib.empty() || rng.uniform() >= cfg.occluder_prob) continue;
+                    const geom::Box2i& bb = in.bbox_visib;
+                    const double rw = rng.uniform(0.2, 0.6) * bb.w, rh = rng.uniform(0.2, 0.6) * bb.h;
+                    const double cx = bb.x + rng.uniform(0, 1) * bb.w, cy = bb.y + rng.uniform(0, 1) * bb.h;
+                    const bool disc = rng.uniform() < 0.5;
+                    uint8_t col[3];
+                    for (uint8_t& c : col) c = uint8_t(rng.below(256));
+                    for (int y = std::max(0, int(cy - rh)); y <= std::min(H - 1, int(cy + rh)); ++y)
+                        for (int x = std::max(0, int(cx - rw)); x <= std::min(W - 1, int(cx + rw)); ++x) {
+                            if (disc) {
+                                const double dx = (x - cx) / rw, dy = (y - cy) / rh;
+                                if (dx * dx + dy * dy > 1) continue;
+                            }
+                            const size_t i = size_t(y) * size_t(W) + size_t(x);
+                            for (int k = 0; k < 3; ++k) d.rgb[i * 3 + size_t(k)] = col[k];
+                            vis[i] = 0;
+                        }
+                }
             augment(d.rgb, W, H, cfg, rng);
-            for (const data::RenderedInstance& in : fr.instances) {
+            for (size_t k = 0; k < fr.instances.size(); ++k) {
+                const data::RenderedInstance& in = fr.instances[k];
                 auto it = cls.find(in.obj_id);
-                if (it == cls.end() || in.visib_fract < cfg.min_visib_fract || in.bbox_visib.empty())
-                    continue;
-                d.boxes.push_back({it->second, float(in.bbox_visib.x), float(in.bbox_visib.y),
-                                   float(in.bbox_visib.w), float(in.bbox_visib.h)});
+                if (it == cls.end() || in.px_count_all <= 0) continue;
+                int x0 = W, y0 = H, x1 = -1, y1 = -1;
+                int64_t n = 0;
+                for (int y = 0; y < H; ++y)
+                    for (int x = 0; x < W; ++x)
+                        if (vis[size_t(y) * size_t(W) + size_t(x)] == uint16_t(k + 1)) {
+                            ++n;
+                            x0 = std::min(x0, x), x1 = std::max(x1, x);
+                            y0 = std::min(y0, y), y1 = std::max(y1, y);
+                        }
+                if (n == 0 || double(n) / double(in.px_count_all) < cfg.min_visib_fract) continue;
+                d.boxes.push_back({it->second, float(x0), float(y0), float(x1 - x0 + 1),
+                                   float(y1 - y0 + 1)});
             }
         }
         return batch;

@@ -17,6 +17,7 @@
 #include "data/detections.h"
 #include "data/scene.h"
 #include "nn/models/detector.h"
+#include "train/trainer.h"
 
 namespace g2l::train {
 
@@ -40,8 +41,12 @@ struct DetectorTrainConfig {
     /// Probability that every pixel without an annotated object is replaced by a random
     /// "dead leaves" clutter texture (rectangles and discs of random colours and sizes).
     double clutter_prob = 0.8;
+    /// Per object, the probability of a random-coloured disc or rectangle (20-60% of its box)
+    /// pasted over it; the target box is that of the pixels left visible.
+    double occluder_prob = 0.0;
     // model
     int width = 16;
+    std::string init;               ///< a detector export to start from (fine-tuning); "" = fresh
     // loss
     double w_heat = 1.0, w_size = 0.1, w_offset = 1.0;
     // optimisation
@@ -131,13 +136,6 @@ std::vector<data::Detection> run_detector_on(const nn::LoadedDetector& det, cons
 /// The table of a result (per object and mean), plain text.
 std::string detector_eval_table(const DetectorEvalResult& r);
 
-struct DetectorTrainOptions {
-    std::string resume_dir;
-    int64_t max_steps = 0;
-    bool progress = true;
-    bool force = false;
-    const std::atomic<bool>* stop_flag = nullptr;
-};
 struct DetectorTrainSummary {
     std::string run_dir;
     int64_t steps = 0;
@@ -147,7 +145,8 @@ struct DetectorTrainSummary {
     bool evaluated = false;
     DetectorEvalResult val;
 };
-DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg,
-                                           const DetectorTrainOptions& opt);
+/// Trains with the options of the pose trainer (resume_dir, max_steps, progress, force,
+/// stop_flag: train/trainer.h).
+DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const TrainOptions& opt);
 
 }  // namespace g2l::train

@@ -67,26 +67,28 @@ int main(int argc, char** argv) {
                      app.help().c_str());
         return 2;
     }
+    // A run stopped by SIGINT / SIGTERM: it wrote its checkpoint; say how to continue.
+    auto interrupted = [](int64_t steps, const std::string& run_dir) {
+        std::fprintf(stderr, "g2l_train: %s after step %lld: checkpoint written, continue with "
+                             "--resume %s\n",
+                     g_signal == SIGINT ? "interrupted (SIGINT)" : "terminated (SIGTERM)",
+                     (long long)steps, run_dir.c_str());
+        return 128 + int(g_signal);
+    };
     try {
         const std::string cfg_path = config.empty() ? resume + "/config.json" : config;
         std::signal(SIGINT, on_signal);
         std::signal(SIGTERM, on_signal);
+        g2l::train::TrainOptions opt;
+        opt.resume_dir = resume;
+        opt.max_steps = max_steps;
+        opt.progress = !quiet;
+        opt.force = force;
+        opt.stop_flag = &g_stop;
         if (g2l::train::is_detector_config(cfg_path)) {  // "task": "detector"
             const auto dcfg = g2l::train::load_detector_config(cfg_path, sets);
-            g2l::train::DetectorTrainOptions dopt;
-            dopt.resume_dir = resume;
-            dopt.max_steps = max_steps;
-            dopt.progress = !quiet;
-            dopt.force = force;
-            dopt.stop_flag = &g_stop;
-            const auto s = g2l::train::run_detector_training(dcfg, dopt);
-            if (s.interrupted) {
-                std::fprintf(stderr, "g2l_train: %s after step %lld: checkpoint written, continue "
-                                     "with --resume %s\n",
-                             g_signal == SIGINT ? "interrupted (SIGINT)" : "terminated (SIGTERM)",
-                             (long long)s.steps, s.run_dir.c_str());
-                return 128 + int(g_signal);
-            }
+            const auto s = g2l::train::run_detector_training(dcfg, opt);
+            if (s.interrupted) return interrupted(s.steps, s.run_dir);
             if (!quiet)
                 std::printf("g2l_train: detector %s after %lld steps, %.1f images/s; export %s/"
                             "detector.g2l%s\n",
@@ -98,20 +100,8 @@ int main(int argc, char** argv) {
             return 0;
         }
         g2l::train::TrainConfig cfg = g2l::train::load_config(cfg_path, sets);
-        g2l::train::TrainOptions opt;
-        opt.resume_dir = resume;
-        opt.max_steps = max_steps;
-        opt.progress = !quiet;
-        opt.force = force;
-        opt.stop_flag = &g_stop;
         const auto s = g2l::train::run_training(cfg, opt);
-        if (s.interrupted) {
-            std::fprintf(stderr, "g2l_train: %s after step %lld: checkpoint written, continue with "
-                                 "--resume %s\n", g_signal == SIGINT ? "interrupted (SIGINT)"
-                                                                       : "terminated (SIGTERM)",
-                         (long long)s.steps, s.run_dir.c_str());
-            return 128 + int(g_signal);
-        }
+        if (s.interrupted) return interrupted(s.steps, s.run_dir);
         if (!quiet)
             std::printf("g2l_train: %s after %lld steps (%d epochs), %.2f samples/s; best val ADD-sym acc@0.1d "
                     "%s; run dir %s\n",

@@ -151,7 +151,7 @@ Tensor detector_input(const uint8_t* rgb, int width, int height, int downscale, 
     G2L_CHECK(w > 0 && h > 0, "detector_input: image ", width, " x ", height,
               " is smaller than the downscale ", downscale);
     const int W = (w + 15) / 16 * 16, H = (h + 15) / 16 * 16;
-    Tensor x = Tensor::zeros({1, 3, H, W});
+    Tensor x = Tensor::zeros({1, 3, H, W});  // host: filled from the host image
     float* px = x.data<float>();
     const float norm = 1.f / float(downscale * downscale);
     for (int y = 0; y < h; ++y)

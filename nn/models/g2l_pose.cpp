@@ -16,7 +16,7 @@ double ms_since(Clock::time_point t0) {
 // [1, 3, N] channel-first tensor of rows `idx` of pts minus `centre`.
 Tensor to_input(const geom::Points& pts, const std::vector<int>& idx, const Eigen::Vector3f& centre) {
     const int64_t N = int64_t(idx.size());
-    Tensor x = Tensor::empty({1, 3, N});
+    Tensor x = Tensor::empty({1, 3, N});  // host: filled from the host point cloud
     float* p = x.data<float>();
     for (int64_t n = 0; n < N; ++n)
         for (int c = 0; c < 3; ++c) p[c * N + n] = pts(idx[size_t(n)], c) - centre[c];
@@ -58,7 +58,7 @@ PoseEstimate estimate_pose(G2LNet& net, const geom::Points& pts, int class_index
         est.status = "too few crop points";
         return est;
     }
-    Tensor onehot = Tensor::zeros({1, cfg.num_classes});
+    Tensor onehot = Tensor::zeros({1, cfg.num_classes});  // host: filled on the host
     onehot.data<float>()[class_index] = 1.f;
 
     // 1. segmentation on the crop centred by its mean
@@ -105,7 +105,7 @@ PoseEstimate estimate_pose(G2LNet& net, const geom::Points& pts, int class_index
     t0 = Clock::now();
     Tensor scale;
     if (cfg.rot_unit != "mm") {
-        scale = Tensor::empty({1, 1, 1});
+        scale = Tensor::empty({1, 1, 1});  // host: filled on the host
         scale.data<float>()[0] = float(rotation_scale(cfg.rot_unit, model_keypoints));
     }
     const RotOut rot = net.rot_forward(to_input(pts, obj, T), onehot, scale);

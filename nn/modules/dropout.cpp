@@ -10,7 +10,7 @@ Dropout::Dropout(double p_, uint64_t seed) : p(p_) {
     G2L_CHECK(p >= 0 && p < 1, "Dropout: p must be in [0, 1), got ", p);
     Rng rng(seed);
     const auto s = rng.state();
-    rng_state = Tensor::empty({8}, DType::I32);
+    rng_state = Tensor::empty({8}, DType::I32);  // host: the Rng state lives on the CPU
     std::memcpy(rng_state.data(), s.data(), sizeof(s));
     register_buffer("rng_state", rng_state);
 }

@@ -48,11 +48,13 @@ Tensor MaxPoolPoints::forward(const Tensor& x) const { return max_pool_points(x)
 BatchNorm::BatchNorm(int64_t channels, double eps_, double momentum_, DType dtype)
     : eps(eps_), momentum(momentum_) {
     G2L_CHECK(channels > 0, "BatchNorm: channels must be > 0, got ", channels);
-    weight = register_parameter("weight", Tensor::ones({channels}, dtype));
-    bias = register_parameter("bias", Tensor::zeros({channels}, dtype));
-    running_mean = register_buffer("running_mean", Tensor::zeros({channels}, dtype));
-    running_var = register_buffer("running_var", Tensor::ones({channels}, dtype));
-    num_batches_tracked = register_buffer("num_batches_tracked", Tensor::zeros({1}, DType::I32));
+    // host: modules are built on the CPU (as every layer's uniform_init), then moved
+    weight = register_parameter("weight", Tensor::ones({channels}, dtype));  // host
+    bias = register_parameter("bias", Tensor::zeros({channels}, dtype));  // host
+    running_mean = register_buffer("running_mean", Tensor::zeros({channels}, dtype));  // host
+    running_var = register_buffer("running_var", Tensor::ones({channels}, dtype));  // host
+    num_batches_tracked =
+        register_buffer("num_batches_tracked", Tensor::zeros({1}, DType::I32));  // host
 }
 
 Tensor BatchNorm::forward(const Tensor& x) {

@@ -674,7 +674,11 @@ std::string apply_sets_to_json(const std::string& json_text, const std::vector<s
 TrainConfig parse_config_text(const std::string& json_text, const std::string& source_name,
                               const std::vector<std::string>& sets,
                               const std::string& base_dir) {
-    TrainConfig c = read_config(parse_json(json_text, source_name), source_name);
+    const json root = parse_json(json_text, source_name);
+    G2L_CHECK(!(root.is_object() && root.contains("task") && root["task"] == "detector"),
+              source_name, ": this is a detector config (\"task\": \"detector\"): g2l_train "
+              "trains it; the pose tools take its export (detector.g2l) with --detector");
+    TrainConfig c = read_config(root, source_name);
     for (const std::string& s : sets) {
         json full = write_config(c);
         apply_set(full, s, source_name);

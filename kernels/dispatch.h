@@ -29,17 +29,17 @@ const Tensor& dispatch_key(const char* op, std::initializer_list<const Tensor*> 
 
 /// Calls cpu(T{}) with T the element type of the first defined tensor of `ts` (float or double;
 /// also int32_t with Types::FloatOrI32) when the tensors live on the CPU. Every defined tensor
-/// of `ts` must be on the same device.
-template <class Cpu>
-void dispatch(const char* op, std::initializer_list<const Tensor*> ts, Cpu&& cpu,
-              Types types = Types::Float) {
+/// of `ts` must be on the same device. `types` is a template argument so that an op without an
+/// int32 kernel never instantiates one (any compiler, any optimisation level).
+template <Types types = Types::Float, class Cpu>
+void dispatch(const char* op, std::initializer_list<const Tensor*> ts, Cpu&& cpu) {
     const Tensor& key = detail::dispatch_key(op, ts);
     if (!key.device().is_cpu()) detail::no_kernel(op, key);
     switch (key.dtype()) {
         case DType::F32: cpu(float{}); return;
         case DType::F64: cpu(double{}); return;
         case DType::I32:
-            if (types == Types::FloatOrI32) {
+            if constexpr (types == Types::FloatOrI32) {
                 cpu(int32_t{});
                 return;
             }

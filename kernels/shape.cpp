@@ -8,36 +8,33 @@ namespace g2l::kernels {
 
 void copy_slab(const Tensor& src, int64_t src_D, int64_t src_off, Tensor& dst, int64_t dst_D,
                int64_t dst_off, int64_t outer, int64_t len, int64_t inner) {
-    dispatch(
+    dispatch<Types::FloatOrI32>(
         "copy_slab", {&src, &dst},
         [&](auto tag) {
             using T = decltype(tag);
             copy_slab_cpu<T>(src.data<T>(), src_D, src_off, dst.data<T>(), dst_D, dst_off, outer,
                              len, inner);
-        },
-        Types::FloatOrI32);
+        });
 }
 
 void permute(const Tensor& x, const std::vector<int64_t>& perm, Tensor& y) {
-    dispatch(
+    dispatch<Types::FloatOrI32>(
         "permute", {&x, &y},
         [&](auto tag) {
             using T = decltype(tag);
             permute_cpu<T>(x.data<T>(), x.shape(), perm, y.data<T>());
-        },
-        Types::FloatOrI32);
+        });
 }
 
 void index_select_fwd(const Tensor& x, const Tensor& idx, Tensor& y, int64_t outer, int64_t D,
                        int64_t inner) {
-    dispatch(
+    dispatch<Types::FloatOrI32>(
         "index_select", {&x, &idx, &y},
         [&](auto tag) {
             using T = decltype(tag);
             index_select_fwd_cpu<T>(x.data<T>(), idx.data<int32_t>(), idx.numel(), y.data<T>(),
                                     outer, D, inner);
-        },
-        Types::FloatOrI32);
+        });
 }
 
 void index_select_bwd(const Tensor& dy, const Tensor& idx, Tensor& dx, int64_t outer, int64_t D,

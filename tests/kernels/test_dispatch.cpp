@@ -24,7 +24,7 @@ TEST_CASE("dispatch: the element type follows the first defined tensor", "[kerne
     REQUIRE(seen == sizeof(float));
     kernels::dispatch("op", {&none, &d, &f}, record);  // undefined skipped: d decides
     REQUIRE(seen == sizeof(double));
-    kernels::dispatch("op", {nullptr, &i}, record, kernels::Types::FloatOrI32);
+    kernels::dispatch<kernels::Types::FloatOrI32>("op", {nullptr, &i}, record);
     REQUIRE(seen == sizeof(int32_t));
     seen = 0;
     REQUIRE_THROWS_WITH(kernels::dispatch("my_op", {&i}, record),

@@ -24,6 +24,10 @@ struct Instance {
     double visib_fract = -1;      ///< visible fraction in [0, 1]; -1 when not annotated
     std::string mask_visib_path;  ///< visible-part mask (non-zero = object); "" if none
     int index_in_frame = 0;       ///< position in the frame's annotation list (BOP's k)
+    /// The box to detect / crop: the visible part's, else the full object's (both may be empty).
+    const geom::Box2i& box() const { return bbox_visib.empty() ? bbox_obj : bbox_visib; }
+    /// At least min_visib visible, or the visible fraction is not annotated (-1).
+    bool visible_enough(double min_visib) const { return visib_fract < 0 || visib_fract >= min_visib; }
 };
 
 /// One RGB(-D) image with its camera and ground truth.

@@ -196,7 +196,7 @@ void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads
     const geom::Intrinsics& K = cfg_.camera;
     const int W = K.width, H = K.height;
 
-    // Which objects: targets (annotated, instance ids 1..n) then distractors (id 0).
+    // Which objects: targets (annotated, instance ids 1..n) then distractors (id -1).
     std::vector<int> pool = targets_;
     int n_targets = int(rng.randint(cfg_.targets_min, cfg_.targets_max + 1));
     if (cfg_.unique_targets) n_targets = std::min<int>(n_targets, int(pool.size()));
@@ -242,7 +242,7 @@ void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads
         obj.pose.R = cfg_.full_rotation ? random_rotation(rng)
                                         : euler_rotation(cfg_.euler_min, cfg_.euler_max, rng);
         obj.pose.t = p - obj.pose.R * m.center;
-        obj.instance_id = k < size_t(n_targets) ? int32_t(k + 1) : 0;
+        obj.instance_id = k < size_t(n_targets) ? int32_t(k + 1) : -1;  // -1: distractor
         obj.default_color = cfg_.object_color;
         objects_.push_back(obj);
     }
@@ -321,7 +321,12 @@ void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads
     apply_sensor_noise(cfg_.noise, rng.next_u64(), W, H, full_.cos_view.data(), out.depth.data(),
                        noise_scratch_, threads);
     out.mask.resize(size_t(W) * H);
-    for (size_t i = 0; i < out.mask.size(); ++i) out.mask[i] = uint16_t(full_.instance[i]);
+    out.distractor_mask.resize(size_t(W) * H);
+    for (size_t i = 0; i < out.mask.size(); ++i) {
+        const int32_t id = full_.instance[i];
+        out.mask[i] = uint16_t(std::max(id, 0));
+        out.distractor_mask[i] = id < 0 ? 255 : 0;
+    }
 
     // Per-instance ground truth: full silhouette from a solo render, visible part from the
     // scene's instance image (BOP scene_gt_info semantics).
@@ -417,7 +422,7 @@ std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_resting(
         obj.mesh = m.mesh;
         obj.pose.R = Rcw * pose_w[k].R;
         obj.pose.t = Rcw * (pose_w[k].t - C);
-        obj.instance_id = k < size_t(n_targets) ? int32_t(k + 1) : 0;
+        obj.instance_id = k < size_t(n_targets) ? int32_t(k + 1) : -1;  // -1: distractor
         obj.default_color = cfg_.object_color;
         objects_.push_back(obj);
         placed.emplace_back(Rcw * (world[k].first - C), m.radius);

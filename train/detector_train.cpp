@@ -2,7 +2,9 @@
 #include "train/detector_train.h"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
+#include <deque>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -83,6 +85,17 @@ struct Keys {
             }
         }
     }
+    void texts(const std::string& k, std::vector<std::string>& v) {
+        if (const json* j = get(k)) {
+            G2L_CHECK(j->is_array(), where, ": '", k, "' must be a list of strings, got ", j->dump());
+            v.clear();
+            for (const json& e : *j) {
+                G2L_CHECK(e.is_string(), where, ": '", k, "' must be a list of strings, got ",
+                          j->dump());
+                v.push_back(e.get<std::string>());
+            }
+        }
+    }
     void done() {
         for (auto it = obj.begin(); it != obj.end(); ++it)
             if (!seen.count(it.key())) {
@@ -105,6 +118,9 @@ json to_json(const DetectorTrainConfig& c) {
                   {"object_ids", c.object_ids},
                   {"downscale", c.downscale},
                   {"min_visib_fract", c.min_visib_fract},
+                  {"distractors_root", c.distractors_root},
+                  {"distractor_ids", c.distractor_ids},
+                  {"distractor_colors", c.distractor_colors},
                   {"scene", json::parse(data::scene_config_to_json(c.scene))}}},
                 {"augment",
                  {{"color_jitter", c.color_jitter},
@@ -112,7 +128,9 @@ json to_json(const DetectorTrainConfig& c) {
                   {"blur_prob", c.blur_prob},
                   {"gray_prob", c.gray_prob},
                   {"clutter_prob", c.clutter_prob},
-                  {"occluder_prob", c.occluder_prob}}},
+                  {"occluder_prob", c.occluder_prob},
+                  {"backgrounds", c.backgrounds},
+                  {"photo_prob", c.photo_prob}}},
                 {"model", {{"width", c.width}, {"init", c.init}}},
                 {"loss", {{"heat", c.w_heat}, {"size", c.w_size}, {"offset", c.w_offset}}},
                 {"optim", {{"lr", c.lr}}},
@@ -146,6 +164,14 @@ void validate(const DetectorTrainConfig& c, const std::string& where) {
     frac("augment.gray_prob", c.gray_prob);
     frac("augment.clutter_prob", c.clutter_prob);
     frac("augment.occluder_prob", c.occluder_prob);
+    frac("augment.photo_prob", c.photo_prob);
+    G2L_CHECK(c.photo_prob == 0 || !c.backgrounds.empty(), where,
+              ": 'augment.photo_prob' is ", c.photo_prob, " but 'augment.backgrounds' lists no "
+              "directory of photographs");
+    G2L_CHECK(c.distractor_colors >= 1 && c.distractor_colors <= 16, where,
+              ": 'data.distractor_colors' must be in [1, 16], got ", c.distractor_colors);
+    G2L_CHECK(c.distractors_root.empty() == false || c.distractor_ids.empty(), where,
+              ": 'data.distractor_ids' is set but 'data.distractors_root' is empty");
     G2L_CHECK(std::isfinite(c.noise_std) && c.noise_std >= 0 && c.noise_std <= 128, where,
               ": 'augment.noise_std' must be in [0, 128], got ", c.noise_std);
     G2L_CHECK(c.width >= 4 && c.width <= 256, where, ": 'model.width' must be in [4, 256], got ",
@@ -198,6 +224,9 @@ DetectorTrainConfig parse_detector_config(const std::string& json_text, const st
         kd.ints("object_ids", c.object_ids);
         kd.num("downscale", c.downscale);
         kd.num("min_visib_fract", c.min_visib_fract);
+        kd.text("distractors_root", c.distractors_root);
+        kd.ints("distractor_ids", c.distractor_ids);
+        kd.num("distractor_colors", c.distractor_colors);
         if (const json* s = kd.get("scene"))
             c.scene = data::parse_scene_config(s->dump(), source + ": data.scene");
     });
@@ -208,6 +237,8 @@ DetectorTrainConfig parse_detector_config(const std::string& json_text, const st
         ka.num("gray_prob", c.gray_prob);
         ka.num("clutter_prob", c.clutter_prob);
         ka.num("occluder_prob", c.occluder_prob);
+        ka.texts("backgrounds", c.backgrounds);
+        ka.num("photo_prob", c.photo_prob);
     });
     section("model", [&](Keys& km) {
         km.num("width", c.width);
@@ -236,6 +267,9 @@ DetectorTrainConfig parse_detector_config(const std::string& json_text, const st
     if (!c.models_root.empty()) c.models_root = resolve_config_path(c.models_root, base_dir);
     if (!c.val_root.empty()) c.val_root = resolve_config_path(c.val_root, base_dir);
     if (!c.init.empty()) c.init = resolve_config_path(c.init, base_dir);
+    if (!c.distractors_root.empty())
+        c.distractors_root = resolve_config_path(c.distractors_root, base_dir);
+    for (std::string& b : c.backgrounds) b = resolve_config_path(b, base_dir);
     if (c.run_dir.empty()) c.run_dir = "runs/" + c.name;  // as the pose trainer: cwd-relative
     validate(c, source);
     return c;
@@ -437,7 +471,7 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
                 const data::Instance& in = fr.instances[k];
                 auto it = cls.find(in.obj_id);
                 if (gt_used[k] || it == cls.end() || it->second != d.cls) continue;
-                const geom::Box2i& b = in.bbox_visib.empty() ? in.bbox_obj : in.bbox_visib;
+                const geom::Box2i& b = in.box();
                 const double v = iou(d.x, d.y, d.w, d.h, float(b.x), float(b.y), float(b.w),
                                      float(b.h));
                 if (v >= best_iou) best_iou = v, best = int(k);
@@ -451,8 +485,8 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
             const data::Instance& in = fr.instances[k];
             auto it = cls.find(in.obj_id);
             if (it == cls.end()) continue;
-            if (in.visib_fract >= 0 && in.visib_fract < min_visib) continue;
-            const geom::Box2i& b = in.bbox_visib.empty() ? in.bbox_obj : in.bbox_visib;
+            if (!in.visible_enough(min_visib)) continue;
+            const geom::Box2i& b = in.box();
             if (b.empty()) continue;
             DetectorEvalRow& row = r.rows[size_t(it->second)];
             ++row.instances;
@@ -463,6 +497,19 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
             if (iou(best->x, best->y, best->w, best->h, float(b.x), float(b.y), float(b.w),
                     float(b.h)) >= 0.5)
                 ++row.found;
+            std::vector<const nn::Detection*> mine;  // the class's detections, best first
+            for (const nn::Detection& d : dets)
+                if (d.cls == it->second) mine.push_back(&d);
+            std::stable_sort(mine.begin(), mine.end(), [](const nn::Detection* a,
+                                                          const nn::Detection* c) {
+                return a->score > c->score;
+            });
+            for (size_t q = 0; q < std::min<size_t>(3, mine.size()); ++q)
+                if (iou(mine[q]->x, mine[q]->y, mine[q]->w, mine[q]->h, float(b.x), float(b.y),
+                        float(b.w), float(b.h)) >= 0.5) {
+                    ++row.found_top3;
+                    break;
+                }
             const int u = int(std::floor(best->peak_x)), v = int(std::floor(best->peak_y));
             if (u < 0 || v < 0 || u >= img.w || v >= img.h) continue;
             bool on = false;
@@ -483,16 +530,18 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
     for (const DetectorEvalRow& row : r.rows) {
         r.total.instances += row.instances;
         r.total.found += row.found;
+        r.total.found_top3 += row.found_top3;
         r.total.peak_on_mask += row.peak_on_mask;
         r.total.detections += row.detections;
         r.total.true_detections += row.true_detections;
         if (row.instances == 0) continue;
         ++n;
         r.mean_recall += row.recall();
+        r.mean_recall_top3 += row.recall_top3();
         r.mean_precision += row.precision();
         r.mean_peak_rate += row.peak_rate();
     }
-    if (n) r.mean_recall /= n, r.mean_precision /= n, r.mean_peak_rate /= n;
+    if (n) r.mean_recall /= n, r.mean_precision /= n, r.mean_peak_rate /= n, r.mean_recall_top3 /= n;
     r.ms_per_frame = r.frames ? ms / r.frames : 0;
     return r;
 }
@@ -534,18 +583,18 @@ std::vector<data::Detection> run_detector_on(const nn::LoadedDetector& det, cons
 std::string detector_eval_table(const DetectorEvalResult& r) {
     std::ostringstream o;
     char line[256];
-    std::snprintf(line, sizeof line, "%8s %9s %10s %13s %11s %10s\n", "obj_id", "instances",
-                  "recall@.5", "precision@.5", "peak_on_obj", "dets>=thr");
+    std::snprintf(line, sizeof line, "%8s %9s %10s %12s %13s %11s %10s\n", "obj_id", "instances",
+                  "recall@.5", "recall_top3", "precision@.5", "peak_on_obj", "dets>=thr");
     o << line;
     for (const DetectorEvalRow& row : r.rows) {
-        std::snprintf(line, sizeof line, "%8d %9d %10.1f %13.1f %11.1f %10d\n", row.obj_id,
-                      row.instances, 100 * row.recall(), 100 * row.precision(),
-                      100 * row.peak_rate(), row.detections);
+        std::snprintf(line, sizeof line, "%8d %9d %10.1f %12.1f %13.1f %11.1f %10d\n", row.obj_id,
+                      row.instances, 100 * row.recall(), 100 * row.recall_top3(),
+                      100 * row.precision(), 100 * row.peak_rate(), row.detections);
         o << line;
     }
-    std::snprintf(line, sizeof line, "%8s %9d %10.1f %13.1f %11.1f %10d\n", "mean",
-                  r.total.instances, 100 * r.mean_recall, 100 * r.mean_precision,
-                  100 * r.mean_peak_rate, r.total.detections);
+    std::snprintf(line, sizeof line, "%8s %9d %10.1f %12.1f %13.1f %11.1f %10d\n", "mean",
+                  r.total.instances, 100 * r.mean_recall, 100 * r.mean_recall_top3,
+                  100 * r.mean_precision, 100 * r.mean_peak_rate, r.total.detections);
     o << line;
     std::snprintf(line, sizeof line, "%d frames, %.1f ms per frame (detector)\n", r.frames,
                   r.ms_per_frame);
@@ -597,9 +646,9 @@ void augment(std::vector<uint8_t>& rgb, int w, int h, const DetectorTrainConfig&
 }
 
 // A "dead leaves" clutter texture (random rectangles and discs of random colours, sizes spread
-// over a log scale, painted back to front) replaces every pixel that shows no annotated object:
+// over a log scale, painted back to front) replaces every pixel that shows no object (keep == 0):
 // real frames show cluttered desks, the renders a plain table.
-void clutter_background(std::vector<uint8_t>& rgb, const std::vector<uint16_t>& mask, int w,
+void clutter_background(std::vector<uint8_t>& rgb, const std::vector<uint8_t>& keep, int w,
                         int h, Rng& rng) {
     std::vector<uint8_t> bg(size_t(w) * size_t(h) * 3);
     for (size_t i = 0; i < bg.size(); i += 3) {
@@ -631,9 +680,96 @@ void clutter_background(std::vector<uint8_t>& rgb, const std::vector<uint16_t>& 
             }
     }
     for (size_t i = 0; i < size_t(w) * size_t(h); ++i)
-        if (mask[i] == 0)
+        if (keep[i] == 0)
             for (int k = 0; k < 3; ++k) rgb[i * 3 + size_t(k)] = bg[i * 3 + size_t(k)];
 }
+
+// A random crop of a random photograph (35-100% of its width, the input's aspect ratio,
+// mirrored half the time), resampled bilinearly, replaces every pixel with keep == 0.
+void photo_background(std::vector<uint8_t>& rgb, const std::vector<uint8_t>& keep, int w, int h,
+                      const std::vector<data::Image>& photos, Rng& rng) {
+    const data::Image& p = photos[size_t(rng.below(photos.size()))];
+    const double aspect = double(h) / double(w);
+    double cw = rng.uniform(0.35, 1.0) * p.w;
+    if (cw * aspect > p.h) cw = p.h / aspect;
+    const double ch = cw * aspect;
+    const double x0 = rng.uniform(0, std::max(0.0, p.w - cw)), y0 = rng.uniform(0, std::max(0.0, p.h - ch));
+    const bool flip = rng.uniform() < 0.5;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const size_t i = size_t(y) * size_t(w) + size_t(x);
+            if (keep[i]) continue;
+            const double fx = (flip ? (w - 1 - x) : x) + 0.5, fy = y + 0.5;
+            const double sx = std::clamp(x0 + fx * cw / w - 0.5, 0.0, double(p.w - 1));
+            const double sy = std::clamp(y0 + fy * ch / h - 0.5, 0.0, double(p.h - 1));
+            const int ix = std::min(int(sx), p.w - 2 < 0 ? 0 : p.w - 2);
+            const int iy = std::min(int(sy), p.h - 2 < 0 ? 0 : p.h - 2);
+            const double ax = std::clamp(sx - ix, 0.0, 1.0), ay = std::clamp(sy - iy, 0.0, 1.0);
+            const int ix1 = std::min(ix + 1, p.w - 1), iy1 = std::min(iy + 1, p.h - 1);
+            for (int k = 0; k < 3; ++k) {
+                auto at = [&](int xx, int yy) {
+                    return double(p.data[(size_t(yy) * size_t(p.w) + size_t(xx)) * 3 + size_t(k)]);
+                };
+                const double v = (1 - ay) * ((1 - ax) * at(ix, iy) + ax * at(ix1, iy)) +
+                                 ay * ((1 - ax) * at(ix, iy1) + ax * at(ix1, iy1));
+                rgb[i * 3 + size_t(k)] = uint8_t(std::clamp(v + 0.5, 0.0, 255.0));
+            }
+        }
+}
+
+// Every .png / .jpg file directly in each directory, as RGB (sorted: the training is
+// reproducible). Throws naming the directory when one is missing or holds no image.
+std::vector<data::Image> load_photos(const std::vector<std::string>& dirs) {
+    std::vector<data::Image> out;
+    for (const std::string& d : dirs) {
+        G2L_CHECK(fs::is_directory(d), "augment.backgrounds: '", d, "' is not a directory");
+        std::vector<std::string> files;
+        for (const auto& e : fs::directory_iterator(d)) {
+            std::string ext = e.path().extension().string();
+            for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+            if (e.is_regular_file() && (ext == ".png" || ext == ".jpg" || ext == ".jpeg"))
+                files.push_back(e.path().string());
+        }
+        G2L_CHECK(!files.empty(), "augment.backgrounds: '", d, "' holds no .png or .jpg image");
+        std::sort(files.begin(), files.end());
+        for (const std::string& f : files) {
+            out.push_back(data::load_rgb_image(f));
+            G2L_CHECK(out.back().w >= 16 && out.back().h >= 16, "augment.backgrounds: '", f,
+                      "' is too small (", out.back().w, " x ", out.back().h, ")");
+        }
+    }
+    return out;
+}
+
+// Vertex colours for a distractor mesh without any: a base colour (half the time a grey or
+// white, else a saturated one) with a linear gradient along a random axis and per-vertex noise,
+// so a distractor looks like a painted or printed object, not a flat silhouette.
+void paint_distractor(geom::Mesh& m, Rng& rng) {
+    double base[3];
+    if (rng.uniform() < 0.5) {
+        const double g = rng.uniform(90, 250);
+        for (double& b : base) b = g + rng.uniform(-10, 10);
+    } else {
+        for (double& b : base) b = rng.uniform(0, 255);
+    }
+    Eigen::Vector3d axis(rng.normal(), rng.normal(), rng.normal());
+    axis.normalize();
+    double lo = 1e30, hi = -1e30;
+    for (int i = 0; i < m.vertices.rows(); ++i) {
+        const double t = m.vertices.row(i).cast<double>().dot(axis.transpose());
+        lo = std::min(lo, t), hi = std::max(hi, t);
+    }
+    const double amp = rng.uniform(0, 60);
+    m.colors.resize(m.vertices.rows(), 3);
+    for (int i = 0; i < m.vertices.rows(); ++i) {
+        const double t = (m.vertices.row(i).cast<double>().dot(axis.transpose()) - lo) /
+                         std::max(1e-9, hi - lo);
+        for (int k = 0; k < 3; ++k)
+            m.colors(i, k) = uint8_t(std::clamp(base[k] + amp * (t - 0.5) + rng.uniform(-8, 8), 0.0, 255.0));
+    }
+}
+
+constexpr int kDistractorId = 1000000;
 
 // The scene at the detector's input resolution: the camera scaled by 1/downscale.
 data::SceneConfig input_scene(const DetectorTrainConfig& c) {
@@ -654,6 +790,7 @@ data::SceneConfig input_scene(const DetectorTrainConfig& c) {
 DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const TrainOptions& opt) {
     if (cfg.threads > 0) set_num_threads(cfg.threads);
     const std::string run_dir = opt.resume_dir.empty() ? cfg.run_dir : opt.resume_dir;
+    const std::vector<data::Image> photos = load_photos(cfg.backgrounds);  // before the run dir
     prepare_run_dir(run_dir, !opt.resume_dir.empty(), opt.force);
 
     // ---- models and the scene ----
@@ -669,7 +806,29 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
                   " has no vertex colours; the detector learns from colour renders");
         sm.push_back({id, &mesh});
     }
-    const data::SceneConfig scene = input_scene(cfg);
+    // Distractors: kDistractorId + 1000 * variant + obj_id, so no id collides with a target.
+    data::SceneConfig scene = input_scene(cfg);
+    std::deque<geom::Mesh> distractor_meshes;
+    if (!cfg.distractors_root.empty()) {
+        data::BopOptions dopt;
+        dopt.obj_ids = cfg.distractor_ids;
+        const data::Dataset dm = data::open_bop_models(cfg.distractors_root, dopt);
+        Rng paint(mix_seed(cfg.seed, 0xD157));
+        for (const auto& [id, info] : dm.models()) {
+            const geom::Mesh& mesh = dm.load_model_mesh(id);
+            const int variants = mesh.colors.rows() > 0 ? 1 : cfg.distractor_colors;
+            for (int v = 0; v < variants; ++v) {
+                distractor_meshes.push_back(mesh);
+                if (mesh.colors.rows() == 0) paint_distractor(distractor_meshes.back(), paint);
+                const int did = kDistractorId + 1000 * v + id;
+                sm.push_back({did, &distractor_meshes.back()});
+                scene.distractor_obj_ids.push_back(did);
+            }
+        }
+        G2L_CHECK(!scene.distractor_obj_ids.empty(), "data.distractors_root '",
+                  cfg.distractors_root, "': no model to use as a distractor");
+    }
+
     const int W = scene.camera.width, H = scene.camera.height;
     G2L_CHECK(W % 16 == 0 && H % 16 == 0, "data.scene.camera: the detector input ", W, " x ", H,
               " (camera / downscale) must be a multiple of 16 in both sizes");
@@ -729,12 +888,12 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
         G2L_CHECK(t.good(), "cannot write the steps log in '", run_dir, "'");
     }
     std::ofstream log(fs::path(run_dir) / "steps.jsonl", std::ios::app);
-    const auto save = [&](const std::string& name) {
+    const auto save = [&](const std::string& name, double seconds_total) {
         std::vector<std::pair<std::string, Tensor>> ts;
         for (const auto& [n, t] : net.state_dict()) ts.emplace_back("model." + n, t);
         for (auto& p : adam.state_tensors()) ts.push_back(p);
         const json meta{{"format", kCheckpointFormat}, {"step", step},
-                        {"seconds", seconds_before}, {"config", json::parse(detector_config_to_json(cfg))}};
+                        {"seconds", seconds_total}, {"config", json::parse(detector_config_to_json(cfg))}};
         save_checkpoint((fs::path(run_dir) / name).string(), ts, meta.dump());
         nn::save_detector((fs::path(run_dir) / "detector.g2l").string(), net, cfg.object_ids,
                       cfg.downscale);
@@ -751,7 +910,13 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
             DetSample& d = batch[size_t(b)];
             d.rgb = fr.rgb;
             Rng rng(mix_seed(mix_seed(cfg.seed, uint64_t(s)), uint64_t(b) + 17));
-            if (rng.uniform() < cfg.clutter_prob) clutter_background(d.rgb, fr.mask, W, H, rng);
+            std::vector<uint8_t> keep(fr.mask.size());
+            for (size_t i = 0; i < keep.size(); ++i)
+                keep[i] = fr.mask[i] != 0 || (!fr.distractor_mask.empty() && fr.distractor_mask[i]);
+            if (cfg.photo_prob > 0 && rng.uniform() < cfg.photo_prob)
+                photo_background(d.rgb, keep, W, H, photos, rng);
+            else if (rng.uniform() < cfg.clutter_prob)
+                clutter_background(d.rgb, keep, W, H, rng);
             // Occluders: random-coloured discs and rectangles pasted over the objects; the
             // visible masks (and so the target boxes and visible fractions) lose those pixels.
             std::vector<uint16_t> vis = fr.mask;
@@ -776,22 +941,29 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
                         }
                 }
             augment(d.rgb, W, H, cfg, rng);
+            // Every instance's box of the pixels left visible, in one pass over the mask.
+            struct Acc {
+                int x0, y0, x1, y1;
+                int64_t n;
+            };
+            std::vector<Acc> acc(fr.instances.size(), Acc{W, H, -1, -1, 0});
+            for (int y = 0; y < H; ++y)
+                for (int x = 0; x < W; ++x) {
+                    const uint16_t id = vis[size_t(y) * size_t(W) + size_t(x)];
+                    if (id == 0 || id > acc.size()) continue;
+                    Acc& a = acc[id - 1u];
+                    ++a.n;
+                    a.x0 = std::min(a.x0, x), a.x1 = std::max(a.x1, x);
+                    a.y0 = std::min(a.y0, y), a.y1 = std::max(a.y1, y);
+                }
             for (size_t k = 0; k < fr.instances.size(); ++k) {
                 const data::RenderedInstance& in = fr.instances[k];
                 auto it = cls.find(in.obj_id);
+                const Acc& a = acc[k];
                 if (it == cls.end() || in.px_count_all <= 0) continue;
-                int x0 = W, y0 = H, x1 = -1, y1 = -1;
-                int64_t n = 0;
-                for (int y = 0; y < H; ++y)
-                    for (int x = 0; x < W; ++x)
-                        if (vis[size_t(y) * size_t(W) + size_t(x)] == uint16_t(k + 1)) {
-                            ++n;
-                            x0 = std::min(x0, x), x1 = std::max(x1, x);
-                            y0 = std::min(y0, y), y1 = std::max(y1, y);
-                        }
-                if (n == 0 || double(n) / double(in.px_count_all) < cfg.min_visib_fract) continue;
-                d.boxes.push_back({it->second, float(x0), float(y0), float(x1 - x0 + 1),
-                                   float(y1 - y0 + 1)});
+                if (a.n == 0 || double(a.n) / double(in.px_count_all) < cfg.min_visib_fract) continue;
+                d.boxes.push_back({it->second, float(a.x0), float(a.y0), float(a.x1 - a.x0 + 1),
+                                   float(a.y1 - a.y0 + 1)});
             }
         }
         return batch;
@@ -902,11 +1074,8 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
         const bool time_hit = cfg.time_limit_min > 0 && elapsed_min() >= cfg.time_limit_min;
         if (step % cfg.checkpoint_every == 0 || step == cfg.steps || stop_flag || max_hit ||
             time_hit) {
-            const double now = std::chrono::duration<double>(Clock::now() - t0).count();
-            const double keep = seconds_before;
-            seconds_before += now;
-            save("last.g2l");
-            seconds_before = keep;
+            save("last.g2l",
+                 seconds_before + std::chrono::duration<double>(Clock::now() - t0).count());
         }
         if (cfg.val_every > 0 && step % cfg.val_every == 0 && step < cfg.steps) run_val();
         if (stop_flag) {

@@ -33,6 +33,12 @@ struct DetectorTrainConfig {
     int downscale = 2;              ///< the detector sees the image at 1/downscale
     double min_visib_fract = 0.1;   ///< less visible instances get no target
     data::SceneConfig scene;        ///< at full resolution (the camera of the real images)
+    /// Unannotated distractor objects (scene.distractors_min/max per frame): the models of this
+    /// BOP root ("" = none), each in `distractor_colors` random colourings (meshes without
+    /// colours get them; coloured meshes keep theirs and give one variant).
+    std::string distractors_root;
+    std::vector<int> distractor_ids;  ///< empty = every model of distractors_root
+    int distractor_colors = 2;
     // augmentation (training only)
     double color_jitter = 0.3;      ///< per-channel gain and brightness, +- this fraction
     double noise_std = 6.0;         ///< Gaussian pixel noise (0..255 units), std up to this
@@ -44,6 +50,11 @@ struct DetectorTrainConfig {
     /// Per object, the probability of a random-coloured disc or rectangle (20-60% of its box)
     /// pasted over it; the target box is that of the pixels left visible.
     double occluder_prob = 0.0;
+    /// Directories of real photographs (any scene without the target objects, e.g. YCB-Video
+    /// frames for LINEMOD objects); with probability photo_prob a random crop of one (random
+    /// scale, flip) replaces every pixel without an object, instead of the clutter texture.
+    std::vector<std::string> backgrounds;
+    double photo_prob = 0.0;
     // model
     int width = 16;
     std::string init;               ///< a detector export to start from (fine-tuning); "" = fresh
@@ -104,10 +115,12 @@ struct DetectorEvalRow {
     int obj_id = 0;
     int instances = 0;      ///< GT instances (visib_fract >= min_visib)
     int found = 0;          ///< the class's best detection overlaps the GT box with IoU >= 0.5
+    int found_top3 = 0;     ///< one of the class's three best detections does (ranking aside)
     int peak_on_mask = 0;   ///< the class's best detection peaks on the instance's visible mask
     int detections = 0;     ///< detections of this class with score >= score_threshold
     int true_detections = 0;  ///< ... matched one-to-one to a GT box of the class (IoU >= 0.5)
     double recall() const { return instances ? double(found) / instances : 0; }
+    double recall_top3() const { return instances ? double(found_top3) / instances : 0; }
     double precision() const { return detections ? double(true_detections) / detections : 0; }
     double peak_rate() const { return instances ? double(peak_on_mask) / instances : 0; }
 };
@@ -115,6 +128,7 @@ struct DetectorEvalResult {
     std::vector<DetectorEvalRow> rows;  ///< per object, in class order
     DetectorEvalRow total;              ///< sums over objects (obj_id 0)
     double mean_recall = 0, mean_precision = 0, mean_peak_rate = 0;  ///< mean over objects
+    double mean_recall_top3 = 0;
     int frames = 0;
     double ms_per_frame = 0;            ///< detector time (input + network + decoding)
 };

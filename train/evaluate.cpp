@@ -25,11 +25,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// visib_fract < 0 means "not annotated" (e.g. YCB-V real frames): such instances are kept.
-bool visible_enough(const data::Instance& inst, double min_visib) {
-    return inst.visib_fract < 0 || inst.visib_fract >= min_visib;
-}
-
 // The sphere centre with the GT visible mask (the earlier protocol, kept for comparison): the
 // mask pixel nearest to the mask centroid that has depth, back-projected.
 bool sphere_centre(const data::Dataset& ds, const data::Frame& f, const data::Instance& inst,
@@ -121,12 +116,12 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
         if (opt.max_instances > 0 && rep.instances >= opt.max_instances) break;
         bool any = false;
         for (const auto& inst : f.instances)
-            any |= class_of.count(inst.obj_id) && visible_enough(inst, opt.min_visib_fract);
+            any |= class_of.count(inst.obj_id) && inst.visible_enough(opt.min_visib_fract);
         if (!any) continue;
         int w = 0, h = 0;
         const std::vector<float> depth = ds.load_depth_mm(f, &w, &h);
         for (const data::Instance& inst : f.instances) {
-            if (!class_of.count(inst.obj_id) || !visible_enough(inst, opt.min_visib_fract)) continue;
+            if (!class_of.count(inst.obj_id) || !inst.visible_enough(opt.min_visib_fract)) continue;
             if (opt.max_instances > 0 && rep.instances >= opt.max_instances) break;
             const data::ObjectModel& om = ds.model(inst.obj_id);
             if (!model_geom.count(inst.obj_id)) {
@@ -151,7 +146,7 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
             res.gt = inst.pose;
             rep.instances++;
             const auto t0 = Clock::now();
-            geom::Box2i box0 = inst.bbox_visib.empty() ? inst.bbox_obj : inst.bbox_visib;
+            geom::Box2i box0 = inst.box();
             bool detected = true;
             std::optional<std::pair<double, double>> det_peak;  // the detector's heat-map peak
             if (opt.detections) {

@@ -208,9 +208,11 @@ int main(int argc, char** argv) {
                 j["mean_recall"] = r.mean_recall;
                 j["mean_precision"] = r.mean_precision;
                 j["mean_peak_on_object"] = r.mean_peak_rate;
+                j["mean_recall_top3"] = r.mean_recall_top3;
                 for (const auto& row : r.rows)
                     j["objects"][std::to_string(row.obj_id)] = {
                         {"instances", row.instances}, {"recall", row.recall()},
+                        {"recall_top3", row.recall_top3()},
                         {"precision", row.precision()}, {"peak_on_object", row.peak_rate()},
                         {"detections", row.detections}};
                 std::ofstream f(json_out);

@@ -55,6 +55,10 @@ int main(int argc, char** argv) {
     app.add_option("--crop-points", crop_points, "points per crop before the object points are taken");
     app.add_option("--eval-every", c.eval_every, "steps between validations");
     app.add_option("--lr", c.lr, "Adam base learning rate");
+    app.add_option("--lr-decay-every", c.lr_decay_every,
+                   "multiply the lr by --lr-decay-factor every this many steps (0 = constant)");
+    app.add_option("--lr-decay-factor", c.lr_decay_factor, "step-decay factor of the lr")
+        ->check(CLI::Range(1e-6, 1.0));
     app.add_option("--mult-evf", c.mult_evf, "lr multiplier of block A");
     app.add_option("--mult-rot", c.mult_rot, "lr multiplier of block B");
     app.add_option("--mult-rre", c.mult_rre, "lr multiplier of block C");
@@ -206,9 +210,30 @@ int main(int argc, char** argv) {
                                  }
                                  std::printf(", rot median deg%s\n", rot_line.c_str());
                              }
+                             // Per object (several objects only): mean kp/d and median rotation.
+                             json by_object = json::array();
+                             if (objects.size() > 1 && p.val_kp_err_frac_each.size() == val.size()) {
+                                 std::printf("        by object (id kp/d rot_med):");
+                                 for (size_t o = 0; o < objects.size(); ++o) {
+                                     std::vector<double> rot;
+                                     double mkp = 0;
+                                     for (size_t k = 0; k < val.size(); ++k)
+                                         if (val[k].class_index == int(o)) {
+                                             mkp += p.val_kp_err_frac_each[k];
+                                             rot.push_back(p.val_rot_err_deg_each[k]);
+                                         }
+                                     mkp = rot.empty() ? 0 : mkp / double(rot.size());
+                                     const double mrot = rot.empty() ? 0 : geom::median(rot);
+                                     std::printf("  %d %.3f %.0f", objects[o], mkp, mrot);
+                                     by_object.push_back({{"obj_id", objects[o]}, {"n", rot.size()},
+                                                          {"val_kp_err_frac", mkp},
+                                                          {"val_rot_err_deg_median", mrot}});
+                                 }
+                                 std::printf("\n");
+                             }
                              std::fflush(stdout);
                              curve.push_back({{"step", p.step}, {"samples", p.samples},
-                                              {"by_visibility", buckets},
+                                              {"by_visibility", buckets}, {"by_object", by_object},
                                               {"seconds", p.seconds},
                                               {"train_kp_err_mm", p.train_kp_err_mm},
                                               {"val_kp_err_mm", p.val_kp_err_mm},
@@ -216,6 +241,14 @@ int main(int argc, char** argv) {
                                               {"val_rot_err_deg_median", p.val_rot_err_deg_median},
                                               {"val_rot_err_deg_mean", p.val_rot_err_deg_mean},
                                               {"val_acc_10deg", p.val_acc_10deg}});
+                             if (p.step == c.steps) {  // the last point: every sample's errors
+                                 json each = json::array();
+                                 for (size_t k = 0; k < p.val_rot_err_deg_each.size() && k < val.size(); ++k)
+                                     each.push_back({objects[size_t(val[k].class_index)],
+                                                     p.val_kp_err_frac_each[k],
+                                                     p.val_rot_err_deg_each[k]});
+                                 curve.back()["val_each_obj_kpfrac_rotdeg"] = each;
+                             }
                          });
         if (!out_json.empty()) std::ofstream(out_json) << curve.dump(1) << "\n";
         return 0;

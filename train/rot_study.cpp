@@ -52,6 +52,9 @@ std::vector<RotStudyPoint> rot_study(const RotStudyConfig& cfg, int num_classes,
               "rot_study: ", keypoints.size(), " keypoint sets and ", diameters.size(),
               " diameters");
     G2L_CHECK(!cfg.symmetric || symmetric, "rot_study: symmetric targets need symmetry tables");
+    G2L_CHECK(cfg.lr_decay_every >= 0 && cfg.lr_decay_factor > 0 && cfg.lr_decay_factor <= 1,
+              "rot_study: lr_decay_every must be >= 0 and lr_decay_factor in (0, 1], got ",
+              cfg.lr_decay_every, " and ", cfg.lr_decay_factor);
     const int K = int(keypoints[0].size());
     nn::G2LConfig mc;
     mc.num_classes = num_classes;
@@ -106,6 +109,8 @@ std::vector<RotStudyPoint> rot_study(const RotStudyConfig& cfg, int num_classes,
                 G2L_CHECK(++fails < 1000, "rot_study: 1000 unusable draws in a row");
             }
         }
+        if (cfg.lr_decay_every > 0)
+            adam.set_lr(cfg.lr * std::pow(cfg.lr_decay_factor, (step - 1) / cfg.lr_decay_every));
         net.train();
         adam.zero_grad();
         const RotInput in = make_input(batch, cfg.points, num_classes, cfg.centre_noise_mm, &rng);

@@ -21,6 +21,10 @@ struct RotStudyConfig {
     int points = 256;          ///< object points fed to the rotation blocks (M)
     int eval_every = 50;       ///< steps between validations (and the last step)
     double lr = 1e-3;          ///< Adam base lr (betas 0.9 / 0.99 as the official code)
+    /// Step decay: the lr is multiplied by lr_decay_factor every lr_decay_every steps
+    /// (0 = constant lr).
+    int lr_decay_every = 0;
+    double lr_decay_factor = 0.5;
     double mult_evf = 1, mult_rot = 1, mult_rre = 1;  ///< lr multipliers of blocks A, B, C
     double width = 0.25;       ///< network width multiplier
     double dropout = 0.2;      ///< dropout before the last layer of A and B

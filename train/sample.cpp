@@ -225,7 +225,7 @@ bool SampleMaker::make(const DepthView& view, const data::Instance& inst, Rng& r
     const Object& obj = object(inst.obj_id);
     G2L_CHECK(inst.pose.R.allFinite() && inst.pose.t.allFinite(), "SampleMaker::make: pose of "
               "obj_id ", inst.obj_id, " is not finite");
-    const geom::Box2i& box0 = inst.bbox_visib.empty() ? inst.bbox_obj : inst.bbox_visib;
+    const geom::Box2i& box0 = inst.box();
     G2L_CHECK(!box0.empty(), "SampleMaker::make: instance ", inst.index_in_frame, " (obj_id ",
               inst.obj_id, ") has neither bbox_visib nor bbox_obj");
     G2L_CHECK(view.depth_mm != nullptr, "SampleMaker::make: depth pointer is null");

@@ -99,6 +99,47 @@ TEST_CASE("scene ground truth is consistent with the masks, occluded objects los
     CHECK(occluded >= 2);
 }
 
+TEST_CASE("scene distractors: their pixels are in distractor_mask, never in the instance mask",
+          "[data][scene]") {
+    Models m;
+    SceneConfig cfg = small_config();
+    cfg.target_obj_ids = {1};
+    cfg.targets_min = cfg.targets_max = 1;
+    cfg.distractor_obj_ids = {2, 5};
+    cfg.distractors_min = cfg.distractors_max = 2;
+    cfg.support_plane_prob = 0;
+    cfg.random_background = false;
+    cfg.noise.enabled = false;
+    for (const char* mode : {"random", "resting"}) {
+        cfg.pose_mode = mode;
+        SceneGenerator gen(cfg, m.list());
+        RenderedFrame f;
+        int64_t distractor_px = 0;
+        for (int64_t idx = 0; idx < 4; ++idx) {
+            gen.render_frame(idx, f);
+            REQUIRE(f.distractor_mask.size() == f.mask.size());
+            REQUIRE(f.instances.size() == 1);
+            REQUIRE(f.instances[0].obj_id == 1);
+            for (size_t i = 0; i < f.mask.size(); ++i) {
+                REQUIRE(f.mask[i] <= 1);  // only the one target's id
+                if (f.distractor_mask[i]) {
+                    REQUIRE(f.distractor_mask[i] == 255);
+                    REQUIRE(f.mask[i] == 0);
+                    REQUIRE(f.depth[i] > 0);  // a surface, not the background
+                    ++distractor_px;
+                }
+            }
+            // Without a plane or table (random mode), every surface pixel is the target's or
+            // a distractor's.
+            if (std::string(mode) == "random")
+                for (size_t i = 0; i < f.mask.size(); ++i)
+                    if (f.depth[i] > 0) REQUIRE((f.mask[i] == 1 || f.distractor_mask[i] == 255));
+        }
+        INFO(mode);
+        CHECK(distractor_px > 500);
+    }
+}
+
 TEST_CASE("scene frames depend only on seed and index, not on threads or order",
           "[data][scene]") {
     Models m;

@@ -569,7 +569,7 @@ TEST_CASE("config: every shipped config parses", "[config]") {
         if (e.path().extension() == ".json") found.insert(e.path().stem().string());
     for (const char* name : {"lm_paper", "ycbv", "demo_cpu", "ycbv_sim2real", "ablation_frustum",
                              "ablation_no_evf", "ablation_no_rre", "ablation_fps4",
-                             "ablation_fps8", "ablation_fps12", "lmo_detector"})
+                             "ablation_fps8", "ablation_fps12", "lmo_detector", "lmo_detector_photo"})
         CHECK(found.count(name) == 1);
 
     const EnvGuard env("G2L_SHARED_DATA", "/g2l_shared_for_test");

@@ -125,6 +125,11 @@ TEST_CASE("rot_study: bad settings throw", "[train][rotation]") {
     c.symmetric = true;
     CHECK_THROWS_WITH(train::rot_study(c, 1, kps, {100.0}, nullptr, never, val),
                       Catch::Contains("symmetry tables"));
+    const train::SymmetricKeypoints one_table(1, kps);
+    c.lr_decay_factor = 0;
+    CHECK_THROWS_WITH(train::rot_study(c, 1, kps, {100.0}, &one_table, never, val),
+                      Catch::Contains("lr_decay_factor in (0, 1], got 0 and 0"));
+    c.lr_decay_factor = 0.5;
     c.symmetric = false;
     c.steps = 0;
     CHECK_THROWS_WITH(train::rot_study(c, 1, kps, {100.0}, nullptr, never, val),

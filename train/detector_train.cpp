@@ -170,7 +170,8 @@ void validate(const DetectorTrainConfig& c, const std::string& where) {
               "directory of photographs");
     G2L_CHECK(c.distractor_colors >= 1 && c.distractor_colors <= 16, where,
               ": 'data.distractor_colors' must be in [1, 16], got ", c.distractor_colors);
-    G2L_CHECK(c.distractors_root.empty() == false || c.distractor_ids.empty(), where,
+    const bool ids_need_root = !c.distractor_ids.empty();
+    G2L_CHECK(!ids_need_root || !c.distractors_root.empty(), where,
               ": 'data.distractor_ids' is set but 'data.distractors_root' is empty");
     G2L_CHECK(std::isfinite(c.noise_std) && c.noise_std >= 0 && c.noise_std <= 128, where,
               ": 'augment.noise_std' must be in [0, 128], got ", c.noise_std);
@@ -481,6 +482,13 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
                 ++row.true_detections;
             }
         }
+        // Each class's detections, best first (stable: equal scores keep the detector's order).
+        std::vector<std::vector<const nn::Detection*>> by_class(r.rows.size());
+        for (const nn::Detection& d : dets) by_class[size_t(d.cls)].push_back(&d);
+        for (auto& v : by_class)
+            std::stable_sort(v.begin(), v.end(), [](const nn::Detection* a, const nn::Detection* c) {
+                return a->score > c->score;
+            });
         for (size_t k = 0; k < fr.instances.size(); ++k) {
             const data::Instance& in = fr.instances[k];
             auto it = cls.find(in.obj_id);
@@ -490,20 +498,12 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
             if (b.empty()) continue;
             DetectorEvalRow& row = r.rows[size_t(it->second)];
             ++row.instances;
-            const nn::Detection* best = nullptr;  // the class's best: what the pipeline uses
-            for (const nn::Detection& d : dets)
-                if (d.cls == it->second && (!best || d.score > best->score)) best = &d;
-            if (!best) continue;
+            const std::vector<const nn::Detection*>& mine = by_class[size_t(it->second)];
+            if (mine.empty()) continue;
+            const nn::Detection* best = mine.front();  // the class's best: what the pipeline uses
             if (iou(best->x, best->y, best->w, best->h, float(b.x), float(b.y), float(b.w),
                     float(b.h)) >= 0.5)
                 ++row.found;
-            std::vector<const nn::Detection*> mine;  // the class's detections, best first
-            for (const nn::Detection& d : dets)
-                if (d.cls == it->second) mine.push_back(&d);
-            std::stable_sort(mine.begin(), mine.end(), [](const nn::Detection* a,
-                                                          const nn::Detection* c) {
-                return a->score > c->score;
-            });
             for (size_t q = 0; q < std::min<size_t>(3, mine.size()); ++q)
                 if (iou(mine[q]->x, mine[q]->y, mine[q]->w, mine[q]->h, float(b.x), float(b.y),
                         float(b.w), float(b.h)) >= 0.5) {
@@ -645,6 +645,23 @@ void augment(std::vector<uint8_t>& rgb, int w, int h, const DetectorTrainConfig&
     }
 }
 
+// Calls f(pixel index) for every pixel of a w x h image inside the axis-aligned ellipse (disc)
+// or rectangle of centre (cx, cy) and half-sizes (rw, rh), clipped to the image.
+template <class F>
+void for_each_shape_pixel(int w, int h, double cx, double cy, double rw, double rh, bool disc,
+                          F&& f) {
+    const int x0 = std::max(0, int(cx - rw)), x1 = std::min(w - 1, int(cx + rw));
+    const int y0 = std::max(0, int(cy - rh)), y1 = std::min(h - 1, int(cy + rh));
+    for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x) {
+            if (disc) {
+                const double dx = (x - cx) / rw, dy = (y - cy) / rh;
+                if (dx * dx + dy * dy > 1) continue;
+            }
+            f(size_t(y) * size_t(w) + size_t(x));
+        }
+}
+
 // A "dead leaves" clutter texture (random rectangles and discs of random colours, sizes spread
 // over a log scale, painted back to front) replaces every pixel that shows no object (keep == 0):
 // real frames show cluttered desks, the renders a plain table.
@@ -667,17 +684,10 @@ void clutter_background(std::vector<uint8_t>& rgb, const std::vector<uint8_t>& k
         const double sat = rng.uniform();
         const double base = rng.uniform(0, 255);
         for (uint8_t& c : col) c = uint8_t(std::clamp(base + sat * rng.uniform(-128, 128), 0.0, 255.0));
-        const int x0 = std::max(0, int(cx - rw)), x1 = std::min(w - 1, int(cx + rw));
-        const int y0 = std::max(0, int(cy - rh)), y1 = std::min(h - 1, int(cy + rh));
-        for (int y = y0; y <= y1; ++y)
-            for (int x = x0; x <= x1; ++x) {
-                if (disc) {
-                    const double dx = (x - cx) / rw, dy = (y - cy) / rh;
-                    if (dx * dx + dy * dy > 1) continue;
-                }
-                uint8_t* p = &bg[(size_t(y) * size_t(w) + size_t(x)) * 3];
-                p[0] = col[0], p[1] = col[1], p[2] = col[2];
-            }
+        for_each_shape_pixel(w, h, cx, cy, rw, rh, disc, [&](size_t i) {
+            uint8_t* p = &bg[i * 3];
+            p[0] = col[0], p[1] = col[1], p[2] = col[2];
+        });
     }
     for (size_t i = 0; i < size_t(w) * size_t(h); ++i)
         if (keep[i] == 0)
@@ -702,8 +712,8 @@ void photo_background(std::vector<uint8_t>& rgb, const std::vector<uint8_t>& kee
             const double fx = (flip ? (w - 1 - x) : x) + 0.5, fy = y + 0.5;
             const double sx = std::clamp(x0 + fx * cw / w - 0.5, 0.0, double(p.w - 1));
             const double sy = std::clamp(y0 + fy * ch / h - 0.5, 0.0, double(p.h - 1));
-            const int ix = std::min(int(sx), p.w - 2 < 0 ? 0 : p.w - 2);
-            const int iy = std::min(int(sy), p.h - 2 < 0 ? 0 : p.h - 2);
+            const int ix = std::min(int(sx), p.w - 2);  // photos are >= 16 px (load_photos)
+            const int iy = std::min(int(sy), p.h - 2);
             const double ax = std::clamp(sx - ix, 0.0, 1.0), ay = std::clamp(sy - iy, 0.0, 1.0);
             const int ix1 = std::min(ix + 1, p.w - 1), iy1 = std::min(iy + 1, p.h - 1);
             for (int k = 0; k < 3; ++k) {
@@ -769,7 +779,7 @@ void paint_distractor(geom::Mesh& m, Rng& rng) {
     }
 }
 
-constexpr int kDistractorId = 1000000;
+constexpr int kDistractorId = 1000000;  // the largest obj_id a models_info.json may hold
 
 // The scene at the detector's input resolution: the camera scaled by 1/downscale.
 data::SceneConfig input_scene(const DetectorTrainConfig& c) {
@@ -806,7 +816,8 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
                   " has no vertex colours; the detector learns from colour renders");
         sm.push_back({id, &mesh});
     }
-    // Distractors: kDistractorId + 1000 * variant + obj_id, so no id collides with a target.
+    // Distractors: ids above kDistractorId (the largest id a model may have), numbered in
+    // order, so no id collides with a target's or another distractor's.
     data::SceneConfig scene = input_scene(cfg);
     std::deque<geom::Mesh> distractor_meshes;
     if (!cfg.distractors_root.empty()) {
@@ -814,13 +825,14 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
         dopt.obj_ids = cfg.distractor_ids;
         const data::Dataset dm = data::open_bop_models(cfg.distractors_root, dopt);
         Rng paint(mix_seed(cfg.seed, 0xD157));
+        int next_id = kDistractorId + 1;
         for (const auto& [id, info] : dm.models()) {
             const geom::Mesh& mesh = dm.load_model_mesh(id);
             const int variants = mesh.colors.rows() > 0 ? 1 : cfg.distractor_colors;
             for (int v = 0; v < variants; ++v) {
                 distractor_meshes.push_back(mesh);
                 if (mesh.colors.rows() == 0) paint_distractor(distractor_meshes.back(), paint);
-                const int did = kDistractorId + 1000 * v + id;
+                const int did = next_id++;
                 sm.push_back({did, &distractor_meshes.back()});
                 scene.distractor_obj_ids.push_back(did);
             }
@@ -910,13 +922,17 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
             DetSample& d = batch[size_t(b)];
             d.rgb = fr.rgb;
             Rng rng(mix_seed(mix_seed(cfg.seed, uint64_t(s)), uint64_t(b) + 17));
-            std::vector<uint8_t> keep(fr.mask.size());
-            for (size_t i = 0; i < keep.size(); ++i)
-                keep[i] = fr.mask[i] != 0 || (!fr.distractor_mask.empty() && fr.distractor_mask[i]);
+            // The pixels a new background must leave alone: targets' and distractors'.
+            auto keep = [&fr] {
+                std::vector<uint8_t> k(fr.mask.size());
+                for (size_t i = 0; i < k.size(); ++i)
+                    k[i] = fr.mask[i] != 0 || (!fr.distractor_mask.empty() && fr.distractor_mask[i]);
+                return k;
+            };
             if (cfg.photo_prob > 0 && rng.uniform() < cfg.photo_prob)
-                photo_background(d.rgb, keep, W, H, photos, rng);
+                photo_background(d.rgb, keep(), W, H, photos, rng);
             else if (rng.uniform() < cfg.clutter_prob)
-                clutter_background(d.rgb, keep, W, H, rng);
+                clutter_background(d.rgb, keep(), W, H, rng);
             // Occluders: random-coloured discs and rectangles pasted over the objects; the
             // visible masks (and so the target boxes and visible fractions) lose those pixels.
             std::vector<uint16_t> vis = fr.mask;
@@ -929,16 +945,10 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
                     const bool disc = rng.uniform() < 0.5;
                     uint8_t col[3];
                     for (uint8_t& c : col) c = uint8_t(rng.below(256));
-                    for (int y = std::max(0, int(cy - rh)); y <= std::min(H - 1, int(cy + rh)); ++y)
-                        for (int x = std::max(0, int(cx - rw)); x <= std::min(W - 1, int(cx + rw)); ++x) {
-                            if (disc) {
-                                const double dx = (x - cx) / rw, dy = (y - cy) / rh;
-                                if (dx * dx + dy * dy > 1) continue;
-                            }
-                            const size_t i = size_t(y) * size_t(W) + size_t(x);
-                            for (int k = 0; k < 3; ++k) d.rgb[i * 3 + size_t(k)] = col[k];
-                            vis[i] = 0;
-                        }
+                    for_each_shape_pixel(W, H, cx, cy, rw, rh, disc, [&](size_t i) {
+                        for (int k = 0; k < 3; ++k) d.rgb[i * 3 + size_t(k)] = col[k];
+                        vis[i] = 0;
+                    });
                 }
             augment(d.rgb, W, H, cfg, rng);
             // Every instance's box of the pixels left visible, in one pass over the mask.

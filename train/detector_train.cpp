@@ -170,8 +170,7 @@ void validate(const DetectorTrainConfig& c, const std::string& where) {
               "directory of photographs");
     G2L_CHECK(c.distractor_colors >= 1 && c.distractor_colors <= 16, where,
               ": 'data.distractor_colors' must be in [1, 16], got ", c.distractor_colors);
-    const bool ids_need_root = !c.distractor_ids.empty();
-    G2L_CHECK(!ids_need_root || !c.distractors_root.empty(), where,
+    G2L_CHECK(c.distractor_ids.empty() || !c.distractors_root.empty(), where,
               ": 'data.distractor_ids' is set but 'data.distractors_root' is empty");
     G2L_CHECK(std::isfinite(c.noise_std) && c.noise_std >= 0 && c.noise_std <= 128, where,
               ": 'augment.noise_std' must be in [0, 128], got ", c.noise_std);
@@ -482,13 +481,9 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
                 ++row.true_detections;
             }
         }
-        // Each class's detections, best first (stable: equal scores keep the detector's order).
+        // Each class's detections, best first (nn::detect returns them in that order).
         std::vector<std::vector<const nn::Detection*>> by_class(r.rows.size());
         for (const nn::Detection& d : dets) by_class[size_t(d.cls)].push_back(&d);
-        for (auto& v : by_class)
-            std::stable_sort(v.begin(), v.end(), [](const nn::Detection* a, const nn::Detection* c) {
-                return a->score > c->score;
-            });
         for (size_t k = 0; k < fr.instances.size(); ++k) {
             const data::Instance& in = fr.instances[k];
             auto it = cls.find(in.obj_id);

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <tuple>
 #include <nlohmann/json.hpp>
 
@@ -65,6 +66,8 @@ struct Acc {
     int count = 0, misses = 0, correct = 0, found = 0, correct_adds = 0, correct_sym = 0;
     double rot = 0, trans = 0;
     std::vector<double> rot_sym, trans_all;
+    double seg_iou = 0;
+    int seg_n = 0;
 };
 
 
@@ -72,7 +75,24 @@ struct Acc {
 struct ObjGeom {
     geom::Points pts;
     std::vector<geom::SymmetryTransform> syms;
+    std::unique_ptr<geom::ModelKdTree> tree;  // mesh vertices + surface samples (label rule)
 };
+
+// IoU of `taken` with the flagged rows of `gt`, both restricted to the rows in `seen` (each
+// counted once); -1 when neither has a point there.
+double rows_iou(const std::vector<int>& seen, const std::vector<int>& taken,
+                const std::vector<uint8_t>& gt) {
+    std::vector<uint8_t> in_seen(gt.size(), 0), in_taken(gt.size(), 0);
+    for (int r : seen) in_seen[size_t(r)] = 1;
+    for (int r : taken) in_taken[size_t(r)] = 1;
+    int64_t inter = 0, uni = 0;
+    for (size_t r = 0; r < gt.size(); ++r) {
+        if (!in_seen[r]) continue;
+        inter += in_taken[r] && gt[r];
+        uni += in_taken[r] || gt[r];
+    }
+    return uni ? double(inter) / double(uni) : -1.0;
+}
 
 }  // namespace
 
@@ -132,7 +152,8 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                 for (int64_t i = 0; i < keep; ++i) p.row(i) = mesh.vertices.row(i * nv / keep);
                 ObjGeom g;
                 g.pts = p;
-                g.syms = geom::geometric_symmetries(geom::ModelKdTree::from_mesh(mesh), om.info);
+                g.tree = std::make_unique<geom::ModelKdTree>(geom::ModelKdTree::from_mesh(mesh));
+                g.syms = geom::geometric_symmetries(*g.tree, om.info);
                 model_geom[inst.obj_id] = std::move(g);
             }
             if (!meta.count(inst.obj_id))
@@ -191,10 +212,25 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
             const double ms_crop = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
             t_crop += ms_crop;
             nn::PoseEstimate est;
-            if (have)
-                est = engine.estimate(crop, class_of.at(inst.obj_id),
-                                      keypoints[size_t(class_of.at(inst.obj_id))],
-                                      opt.max_object_points, opt.crop_points);
+            if (have) {
+                // Ground-truth object points of the crop (outside the timed stages).
+                const std::vector<uint8_t> gt_obj = model_geom[inst.obj_id].tree->label_points(
+                    crop, inst.pose, float(opt.label_threshold_mm));
+                const Eigen::Vector3f gt_t = inst.pose.t.cast<float>();
+                std::vector<int> taken;
+                nn::PoseQuery q;
+                q.crop = &crop;
+                q.class_index = class_of.at(inst.obj_id);
+                q.keypoints = &keypoints[size_t(q.class_index)];
+                q.object_mask = opt.oracle_seg ? &gt_obj : nullptr;
+                q.translation = opt.oracle_t ? &gt_t : nullptr;
+                q.object_rows = &taken;
+                std::vector<nn::PoseEstimate> ests;
+                engine.estimate({q}, opt.max_object_points, opt.crop_points, &ests);
+                est = std::move(ests[0]);
+                const int n_seen = opt.crop_points > 0 ? opt.crop_points : int(crop.rows());
+                res.seg_iou = rows_iou(nn::even_sample(int(crop.rows()), n_seen), taken, gt_obj);
+            }
             t_seg += est.ms_seg; t_t += est.ms_t; t_rot += est.ms_rot;
             res.ms = ms_crop + est.ms_seg + est.ms_t + est.ms_rot;
             if (have && !est.ok) res.status = est.status;
@@ -218,6 +254,7 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
     }
     const double n_inst = rep.instances;
     rep = aggregate(results, meta);
+    rep.oracle = opt.oracle_seg ? (opt.oracle_t ? "seg+t" : "seg") : opt.oracle_t ? "t" : "none";
     if (instances_out) *instances_out = results;
     if (n_inst > 0) {
         rep.ms_crop = t_crop / n_inst; rep.ms_seg = t_seg / n_inst;
@@ -237,6 +274,10 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
                   m->second.diameter);
         Acc& a = acc[r.obj_id];
         a.count++;
+        if (r.seg_iou >= 0) {
+            a.seg_iou += r.seg_iou;
+            a.seg_n++;
+        }
         if (!r.found) {
             a.misses++;
             a.rot_sym.push_back(180.0);
@@ -276,6 +317,7 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
         s.rot_err_sym_deg_median = geom::median(a.rot_sym);
         s.median_trans_err_mm = geom::median(a.trans_all);
         s.num_symmetries = meta.at(id).num_symmetries;
+        s.seg_iou = a.seg_n ? a.seg_iou / a.seg_n : -1;
         rep.objects.push_back(s);
         all.adds_m.insert(all.adds_m.end(), a.adds_m.begin(), a.adds_m.end());
         all.add_m.insert(all.add_m.end(), a.add_m.begin(), a.add_m.end());
@@ -286,7 +328,12 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
     avg.name = "average";
     avg.count = all.count;
     avg.misses = all.misses;
+    int seg_objects = 0;
     for (const auto& s : rep.objects) {
+        if (s.seg_iou >= 0) {
+            avg.seg_iou = (seg_objects ? avg.seg_iou : 0) + s.seg_iou;
+            seg_objects++;
+        }
         avg.acc_add_s_10 += s.acc_add_s_10 / double(rep.objects.size());
         avg.auc_adds += s.auc_adds / double(rep.objects.size());
         avg.auc_add += s.auc_add / double(rep.objects.size());
@@ -295,23 +342,37 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
         avg.rot_err_sym_deg_median += s.rot_err_sym_deg_median / double(rep.objects.size());
         avg.median_trans_err_mm += s.median_trans_err_mm / double(rep.objects.size());
     }
+    if (seg_objects) avg.seg_iou /= seg_objects;
     avg.mean_rot_err_deg = all.found ? all.rot / all.found : 0;
     avg.mean_trans_err_mm = all.found ? all.trans / all.found : 0;
     return rep;
 }
 
 std::string report_markdown(const EvalReport& r) {
-    std::string s = "| object | n | miss | ADD(-S) acc 0.1d (%) | ADD-S acc 0.1d (%) | ADD-sym acc 0.1d (%) | "
-                    "rot err sym median (deg) | ADD-S AUC | ADD AUC | rot err (deg) | trans err (mm) | trans err median (mm) |\n"
-                    "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    std::string s;
+    if (r.oracle != "none")
+        s = "Oracle inputs (" + r.oracle + "): " +
+            (r.oracle == "seg"  ? std::string("ground-truth object points")
+             : r.oracle == "t" ? std::string("ground-truth translation")
+                               : std::string("ground-truth object points and translation")) +
+            " replace the network's.\n\n";
+    s += "| object | n | miss | ADD(-S) acc 0.1d (%) | ADD-S acc 0.1d (%) | ADD-sym acc 0.1d (%) | "
+                    "rot err sym median (deg) | ADD-S AUC | ADD AUC | rot err (deg) | trans err (mm) | trans err median (mm) | seg IoU |\n"
+                    "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     char line[512];
     auto row = [&](const ObjectScores& o, const std::string& name) {
         std::snprintf(line, sizeof line,
-                      "| %s | %d | %d | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.2f | %.1f | %.1f |\n",
+                      "| %s | %d | %d | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.2f | %.1f | %.1f | ",
                       name.c_str(), o.count, o.misses, o.acc_add_s_10, o.acc_adds_all_10,
                       o.acc_addsym_10, o.rot_err_sym_deg_median, o.auc_adds, o.auc_add,
                       o.mean_rot_err_deg, o.mean_trans_err_mm, o.median_trans_err_mm);
         s += line;
+        if (o.seg_iou >= 0) {
+            std::snprintf(line, sizeof line, "%.3f |\n", o.seg_iou);
+            s += line;
+        } else {
+            s += "- |\n";
+        }
     };
     for (const auto& o : r.objects)
         row(o, std::to_string(o.obj_id) + " " + o.name + (o.symmetric ? " (sym)" : ""));
@@ -340,12 +401,15 @@ std::string report_json(const EvalReport& r) {
                               {"acc_addsym_10", o.acc_addsym_10},
                               {"rot_err_sym_deg_median", o.rot_err_sym_deg_median},
                               {"trans_err_mm_median", o.median_trans_err_mm},
-                              {"num_symmetries", o.num_symmetries}};
+                              {"num_symmetries", o.num_symmetries},
+                              {"seg_iou", o.seg_iou >= 0 ? nlohmann::json(o.seg_iou)
+                                                         : nlohmann::json(nullptr)}};
     };
     for (const auto& o : r.objects) j["objects"].push_back(obj(o));
     j["average"] = obj(r.average);
     j["timing_ms"] = {{"crop", r.ms_crop}, {"seg", r.ms_seg}, {"t", r.ms_t}, {"rot", r.ms_rot}};
     j["instances"] = r.instances;
+    j["oracle"] = r.oracle;
     return j.dump(2);
 }
 

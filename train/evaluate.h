@@ -29,6 +29,14 @@ struct EvalOptions {
     /// instead of the GT boxes: each annotated instance takes the highest-scoring detection of
     /// its object in its image; an instance without one is a miss. Null = GT boxes.
     const std::vector<data::Detection>* detections = nullptr;
+    /// Oracle inputs, to tell which stage an error comes from (the rest runs as usual):
+    /// oracle_seg = the ground-truth object points (the crop points within label_threshold_mm
+    /// of the posed model, training's label rule) replace the segmentation; oracle_t = the GT
+    /// translation replaces the T-net's (it centres the rotation input and is the estimate's
+    /// translation, so the errors are then the rotation's alone).
+    bool oracle_seg = false;
+    bool oracle_t = false;
+    double label_threshold_mm = 8.0;  ///< the object-point rule of the seg IoU and oracle_seg
 };
 
 /// Per-object and overall figures. Misses (no pose) count as failures, with distance inf in
@@ -51,6 +59,9 @@ struct ObjectScores {
     double rot_err_sym_deg_median = 0;
     double median_trans_err_mm = 0;  ///< median translation error over found poses
     int num_symmetries = 1;          ///< geometric symmetries of the mesh (identity included)
+    /// Mean IoU of the points taken as object with the ground-truth object points (training's
+    /// label rule), among the crop points the seg net sees; -1 when no instance had either.
+    double seg_iou = -1;
 };
 
 struct EvalReport {
@@ -58,6 +69,7 @@ struct EvalReport {
     ObjectScores average;               ///< objects' mean (acc, AUCs); "all" counts for others
     double ms_crop = 0, ms_seg = 0, ms_t = 0, ms_rot = 0;  ///< mean per instance
     int instances = 0;
+    std::string oracle = "none";  ///< oracle inputs used: none, seg, t or seg+t (EvalOptions)
 };
 
 /// One evaluated instance: its errors (mm, degrees) or a miss (no pose).
@@ -66,6 +78,9 @@ struct InstanceResult {
     bool found = false;       ///< false: no pose (counts as wrong, distance inf in the AUCs)
     double add_mm = 0, adds_mm = 0, addsym_mm = 0;  ///< ADD, ADD-S, ADD modulo symmetries
     double rot_deg = 0, rot_sym_deg = 0, trans_mm = 0;
+    /// IoU of the object points taken (seg net or oracle) with the GT object points among the
+    /// crop points the seg net sees; -1 when there was no crop or neither set has a point.
+    double seg_iou = -1;
     // Where it came from and what was estimated (evaluate_gt_boxes fills these; aggregate
     // does not read them).
     std::string scene;             ///< BOP scene folder name ("000048")

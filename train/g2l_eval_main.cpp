@@ -62,6 +62,7 @@ void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::train::I
                 j["rot_err_sym_deg"] = r.rot_sym_deg;
                 j["trans_err_mm"] = r.trans_mm;
             }
+            if (r.seg_iou >= 0) j["seg_iou"] = r.seg_iou;
             *jsonl << j.dump() << "\n";
         }
     }
@@ -170,6 +171,13 @@ int main(int argc, char** argv) {
     app.add_flag("--centre-from-mask", centre_from_mask,
                  "take the sphere centre from the GT visible mask (the earlier protocol; default: "
                  "from the box and the depth only, as a detector would give it)");
+    std::string oracle = "none";
+    app.add_option("--oracle", oracle,
+                   "ground-truth inputs in place of a stage's output, to tell which stage an "
+                   "error comes from: seg (the crop points within 8 mm of the posed model replace "
+                   "the segmentation), t (the GT translation replaces the T-net's and centres the "
+                   "rotation input), seg+t (both: the errors are the rotation's alone); default none")
+        ->check(CLI::IsMember({"none", "seg", "t", "seg+t"}));
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_eval"); rc >= 0) return rc;
@@ -184,6 +192,11 @@ int main(int argc, char** argv) {
         return g2l::cli::kUsageError;
     }
     if (checkpoint.empty()) {  // the detector alone
+        if (oracle != "none") {
+            std::fprintf(stderr, "g2l_eval: --oracle %s needs --checkpoint (it replaces a pose "
+                                 "stage's output)\n", oracle.c_str());
+            return g2l::cli::kUsageError;
+        }
         if (root.empty()) {
             std::fprintf(stderr, "g2l_eval: --detector alone needs --root (and --split)\n");
             return g2l::cli::kUsageError;
@@ -317,6 +330,8 @@ int main(int argc, char** argv) {
             eo.max_instances = max_instances;
             eo.min_visib_fract = set_min_visib[i];
             eo.centre_from_mask = centre_from_mask;
+            eo.oracle_seg = oracle == "seg" || oracle == "seg+t";
+            eo.oracle_t = oracle == "t" || oracle == "seg+t";
             if (eo.min_visib_fract > 0) {
                 bool annotated = false;
                 for (const auto& f : sets_to_eval[i].second.frames())

@@ -49,6 +49,12 @@ int main(int argc, char** argv) {
                    "CHECKPOINT OUT: write an inference export of a training checkpoint (weights, "
                    "model config, object ids, keypoints; no optimizer state) and exit")
         ->expected(2);
+    std::vector<std::string> average_args;
+    app.add_option("--average", average_args,
+                   "OUT CHECKPOINT CHECKPOINT...: write an inference export whose weights are the "
+                   "mean of two or more checkpoints of one run (e.g. its last epoch_N.g2l files) "
+                   "and exit")
+        ->expected(3, 1000);
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_train"); rc >= 0) return rc;
@@ -57,6 +63,17 @@ int main(int argc, char** argv) {
             const int64_t bytes = g2l::train::export_model(export_args[0], export_args[1]);
             std::printf("g2l_train: exported %s -> %s (%.1f MB)\n", export_args[0].c_str(),
                         export_args[1].c_str(), double(bytes) / 1e6);
+            return 0;
+        } catch (const std::exception& e) {
+            return g2l::cli::report("g2l_train", e, verbose);
+        }
+    }
+    if (!average_args.empty()) {
+        try {
+            const std::vector<std::string> src(average_args.begin() + 1, average_args.end());
+            const int64_t bytes = g2l::train::export_average(src, average_args[0]);
+            std::printf("g2l_train: the mean of %zu checkpoints -> %s (%.1f MB)\n", src.size(),
+                        average_args[0].c_str(), double(bytes) / 1e6);
             return 0;
         } catch (const std::exception& e) {
             return g2l::cli::report("g2l_train", e, verbose);

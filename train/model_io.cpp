@@ -158,10 +158,10 @@ ResumeState load_training_checkpoint(const std::string& path, nn::G2LNet& net, n
     return st;
 }
 
-int64_t export_model(const std::string& checkpoint_path, const std::string& out_path) {
-    (void)nn::load_model(checkpoint_path);  // everything an export needs is there and consistent
-    const Checkpoint ck = load_checkpoint(checkpoint_path);
-    const json meta = read_meta(ck, checkpoint_path);
+namespace {
+
+// The metadata of an inference export made from a checkpoint's metadata.
+json export_meta(const json& meta, const std::string& checkpoint_path) {
     json out;
     out["format"] = "g2l-model";
     for (const char* k : {"model", "classes", "keypoints", "sampling", "config"})
@@ -174,14 +174,86 @@ int64_t export_model(const std::string& checkpoint_path, const std::string& out_
                           {"seconds", r.value("seconds", 0.0)}, {"best_val", r.value("best_val", -1.0)},
                           {"source", checkpoint_path}};
     }
-    std::vector<std::pair<std::string, Tensor>> tensors;
-    for (const auto& [name, t] : ck.tensors)
-        if (name.rfind("model.", 0) == 0) tensors.emplace_back(name, t);
-    save_checkpoint(out_path, tensors, out.dump());
+    return out;
+}
+
+int64_t written_size(const std::string& out_path) {
     std::error_code ec;
     const auto size = std::filesystem::file_size(out_path, ec);
     G2L_CHECK(!ec, "export '", out_path, "': cannot stat the written file: ", ec.message());
     return int64_t(size);
+}
+
+}  // namespace
+
+int64_t export_model(const std::string& checkpoint_path, const std::string& out_path) {
+    (void)nn::load_model(checkpoint_path);  // everything an export needs is there and consistent
+    const Checkpoint ck = load_checkpoint(checkpoint_path);
+    const json out = export_meta(read_meta(ck, checkpoint_path), checkpoint_path);
+    std::vector<std::pair<std::string, Tensor>> tensors;
+    for (const auto& [name, t] : ck.tensors)
+        if (name.rfind("model.", 0) == 0) tensors.emplace_back(name, t);
+    save_checkpoint(out_path, tensors, out.dump());
+    return written_size(out_path);
+}
+
+int64_t export_average(const std::vector<std::string>& checkpoints, const std::string& out_path) {
+    G2L_CHECK(checkpoints.size() >= 2, "average: give at least two checkpoints, got ",
+              checkpoints.size());
+    const std::string& first = checkpoints.front();
+    std::vector<Checkpoint> cks;
+    std::vector<json> metas;
+    for (const std::string& p : checkpoints) {
+        (void)nn::load_model(p);  // each one is a complete, consistent checkpoint
+        cks.push_back(load_checkpoint(p));
+        metas.push_back(read_meta(cks.back(), p));
+        for (const char* k : {"model", "classes", "keypoints", "sampling"})
+            G2L_CHECK(metas.back().value(k, json()) == metas.front().value(k, json()), "average: '",
+                      p, "' has another '", k, "' than '", first,
+                      "' (average checkpoints of one run only)");
+    }
+    std::vector<std::pair<std::string, Tensor>> tensors;
+    const double n = double(cks.size());
+    for (const auto& [name, t0] : cks.front().tensors) {
+        if (name.rfind("model.", 0) != 0) continue;
+        Tensor sum = t0.clone();
+        for (size_t i = 1; i < cks.size(); ++i) {
+            const auto it = cks[i].tensors.find(name);
+            G2L_CHECK(it != cks[i].tensors.end(), "average: '", checkpoints[i], "' has no tensor '",
+                      name, "' ('", first, "' has)");
+            const Tensor& t = it->second;
+            G2L_CHECK(t.shape() == t0.shape() && t.dtype() == t0.dtype(), "average: tensor '", name,
+                      "' is ", t.desc(), " in '", checkpoints[i], "' but ", t0.desc(), " in '",
+                      first, "'");
+            if (t.dtype() == DType::F32) {
+                float* a = sum.data<float>();
+                const float* b = t.data<float>();
+                for (int64_t k = 0; k < t.numel(); ++k) a[k] += b[k];
+            } else {
+                sum = t.clone();  // integer buffers (e.g. step counters): the last checkpoint's
+            }
+        }
+        if (sum.dtype() == DType::F32) {
+            float* a = sum.data<float>();
+            for (int64_t k = 0; k < sum.numel(); ++k) a[k] = float(double(a[k]) / n);
+        }
+        tensors.emplace_back(name, std::move(sum));
+    }
+    for (size_t i = 1; i < cks.size(); ++i)
+        for (const auto& [name, t] : cks[i].tensors)
+            G2L_CHECK(name.rfind("model.", 0) != 0 || cks.front().tensors.count(name), "average: '",
+                      checkpoints[i], "' has a tensor '", name, "' that '", first, "' has not");
+    // The latest checkpoint's metadata, and where the average came from.
+    json out = export_meta(metas.back(), checkpoints.back());
+    json sources = json::array();
+    for (size_t i = 0; i < checkpoints.size(); ++i) {
+        const json r = metas[i].value("resume", json::object());
+        sources.push_back({{"source", checkpoints[i]}, {"epoch", r.value("epoch", 0)},
+                           {"global_step", r.value("global_step", 0)}});
+    }
+    out["trained"]["averaged"] = sources;
+    save_checkpoint(out_path, tensors, out.dump());
+    return written_size(out_path);
 }
 
 void truncate_jsonl(const std::string& path, const std::string& k, int64_t max_value) {

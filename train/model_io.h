@@ -55,6 +55,14 @@ using nn::load_model;
 /// the file for anything load_model would refuse.
 int64_t export_model(const std::string& checkpoint_path, const std::string& out_path);
 
+/// An inference export whose weights and BatchNorm statistics are the element-wise mean of
+/// several checkpoints of one run (checkpoint averaging: it smooths the epoch-to-epoch swing of
+/// the last weights); the metadata is the last checkpoint's, plus the list of sources under
+/// "trained.averaged". Integer tensors are taken from the last checkpoint. Throws g2l::Error
+/// naming the file for fewer than two checkpoints, one load_model would refuse, or one whose
+/// network, classes, keypoints, sampling or tensors differ from the first's.
+int64_t export_average(const std::vector<std::string>& checkpoints, const std::string& out_path);
+
 /// Keeps only the lines of a JSONL log whose numeric `key` is <= max_value (after a resume the
 /// log continues from the checkpoint). A missing file is fine.
 void truncate_jsonl(const std::string& path, const std::string& key, int64_t max_value);

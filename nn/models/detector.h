@@ -104,7 +104,8 @@ LoadedDetector load_detector(const std::string& path);
 void save_detector(const std::string& path, const Detector& net,
                    const std::vector<int>& object_ids, int downscale);
 
-/// Runs the detector on one RGB image (H x W x 3): detections in the image's own pixels.
+/// Runs the detector on one RGB image (H x W x 3): detections in the image's own pixels,
+/// best score first (ties in a stable order).
 std::vector<Detection> detect(Detector& net, int downscale, const uint8_t* rgb, int width,
                                   int height, float min_score = 0.05f, int max_per_class = 5);
 

@@ -372,9 +372,18 @@ void PoseEngine::estimate(const std::vector<PoseQuery>& qs, int max_points, int 
                   cfg.num_classes, ")");
         G2L_CHECK(int(qs[i].keypoints->size()) == K, "PoseEngine::estimate: ",
                   qs[i].keypoints->size(), " model keypoints, the network predicts ", K);
+        G2L_CHECK(!qs[i].object_mask ||
+                      int64_t(qs[i].object_mask->size()) == int64_t(qs[i].crop->rows()),
+                  "PoseEngine::estimate: query ", i, " has an object mask of ",
+                  qs[i].object_mask ? qs[i].object_mask->size() : 0, " flags for ",
+                  qs[i].crop->rows(), " crop points");
+        G2L_CHECK(!qs[i].translation || qs[i].translation->allFinite(), "PoseEngine::estimate: query ",
+                  i, " has a non-finite translation");
     }
     out->resize(qs.size());
     for (auto& e : *out) e = PoseEstimate{};
+    for (const PoseQuery& q : qs)
+        if (q.object_rows) q.object_rows->clear();
     if (m.work.size() < qs.size()) m.work.resize(qs.size());
     const double nq = double(std::max<size_t>(1, qs.size()));
     std::vector<int>& act = m.active;
@@ -438,6 +447,15 @@ void PoseEngine::estimate(const std::vector<PoseQuery>& qs, int max_points, int 
             }
         }
     }
+    for (int q : act) {  // given object points replace the seg net's decision
+        Impl::Work& w = m.work[size_t(q)];
+        if (const std::vector<uint8_t>* mask = qs[size_t(q)].object_mask) {
+            w.obj.clear();
+            for (int k : w.all)
+                if ((*mask)[size_t(k)]) w.obj.push_back(k);
+        }
+        if (qs[size_t(q)].object_rows) *qs[size_t(q)].object_rows = w.obj;
+    }
     const double ms_seg = ms_since(t0) / nq;
     std::vector<int>& keep = m.keep;
     keep.clear();
@@ -495,6 +513,7 @@ void PoseEngine::estimate(const std::vector<PoseQuery>& qs, int max_points, int 
             const float o = float(cfg.out_scale_mm);
             w.T = w.mean + (o == 1.f ? Eigen::Vector3f(res[0], res[1], res[2])
                                      : Eigen::Vector3f(res[0] * o, res[1] * o, res[2] * o));
+            if (const Eigen::Vector3f* given = qs[size_t(act[s])].translation) w.T = *given;
         }
     }
     const double ms_t = ms_since(t0) / nq;

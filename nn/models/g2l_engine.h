@@ -16,6 +16,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -30,6 +31,17 @@ struct PoseQuery {
     const geom::Points* crop = nullptr;  ///< camera-frame crop points (mm)
     int class_index = 0;
     const std::vector<Eigen::Vector3f>* keypoints = nullptr;  ///< the class's model keypoints
+    /// Optional, one flag per crop row: the object points are given (e.g. by an instance mask,
+    /// or the ground truth in an oracle evaluation). The flagged rows among the points the seg
+    /// net would see (`crop_points`) replace its decision; the rest of the pipeline is unchanged.
+    const std::vector<uint8_t>* object_mask = nullptr;
+    /// Optional: the object's translation (mm) is given; it replaces the T-net's and centres
+    /// the rotation input.
+    const Eigen::Vector3f* translation = nullptr;
+    /// Optional output: the crop rows taken as object (by the seg net or `object_mask`) among
+    /// the points the seg net sees, before the `max_points` subsample (a row may repeat when
+    /// the crop has fewer than `crop_points` points).
+    std::vector<int>* object_rows = nullptr;
 };
 
 class PoseEngine {

@@ -2,7 +2,9 @@
 // nn::PoseEngine (the fast inference path) against nn::estimate_pose (the eval-mode autograd
 // graph): the same object points, translation and rotation up to float rounding, for every
 // network variant; several objects batched = one by one; no heap allocation after warm-up.
+#include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstdlib>
 #include <new>
 
@@ -166,6 +168,88 @@ TEST_CASE("PoseEngine: several objects batched give each object's own result, fa
     const std::vector<Eigen::Vector3f> k5(k0.begin(), k0.begin() + 5);
     CHECK_THROWS_WITH(eng.estimate(a, 0, k5, 300, 700), Catch::Contains("5 model keypoints"));
     CHECK_THROWS_WITH(eng.estimate({{nullptr, 0, &k0}}, 300, 700, &batch), Catch::Contains("null crop"));
+}
+
+TEST_CASE("PoseEngine: given object points and translation replace the seg net's and the "
+          "T-net's; the rows taken are reported", "[nn][engine]") {
+    nn::G2LConfig c;
+    c.num_classes = 2;
+    c.width = 0.25;
+    c.class_heads = true;
+    c.rot_unit = "kp_rms";
+    nn::G2LNet net = make_net(c, 11);
+    nn::PoseEngine eng(net);
+    const auto kps = box_keypoints(40, 30, 55);
+    const geom::Points crop = make_crop(1500, 5);
+    const int cp = 600, op = 256;
+    const std::vector<int> seen = nn::even_sample(int(crop.rows()), cp);
+    std::vector<nn::PoseEstimate> out;
+
+    // The rows the seg net took: a subset of the rows it saw, as many as it reports.
+    std::vector<int> rows;
+    nn::PoseQuery q{&crop, 1, &kps};
+    q.object_rows = &rows;
+    eng.estimate({q}, op, cp, &out);
+    REQUIRE(out[0].ok);
+    REQUIRE_FALSE(rows.empty());
+    CHECK(int(rows.size()) == out[0].num_object_points);
+    for (int r : rows) CHECK(std::find(seen.begin(), seen.end(), r) != seen.end());
+    const nn::PoseEstimate plain = out[0];
+
+    // A mask that flags exactly those rows gives the same estimate to the bit.
+    std::vector<uint8_t> mask(size_t(crop.rows()), 0);
+    for (int r : rows) mask[size_t(r)] = 1;
+    nn::PoseQuery qm = q;
+    qm.object_mask = &mask;
+    std::vector<int> rows_m;
+    qm.object_rows = &rows_m;
+    eng.estimate({qm}, op, cp, &out);
+    CHECK(rows_m == rows);
+    CHECK(out[0].pose.R == plain.pose.R);
+    CHECK(out[0].pose.t == plain.pose.t);
+
+    // The blob (every row not on the background plane at z ~ 900) as the object: the rows taken
+    // are the seen blob rows, and the estimate differs from the seg net's.
+    std::vector<uint8_t> blob(size_t(crop.rows()), 0);
+    for (int64_t r = 0; r < crop.rows(); ++r) blob[size_t(r)] = r % 3 != 0;
+    qm.object_mask = &blob;
+    eng.estimate({qm}, op, cp, &out);
+    REQUIRE(out[0].ok);
+    std::vector<int> want;
+    for (int r : seen)
+        if (r % 3 != 0) want.push_back(r);
+    CHECK(rows_m == want);
+    CHECK(out[0].num_object_points == int(want.size()));
+    CHECK((out[0].pose.t - plain.pose.t).norm() > 1e-3);
+
+    // The T-net's own translation given back: the same rotation to the bit; another one is
+    // the estimate's translation and changes the rotation input (so the rotation).
+    Eigen::Vector3f t = plain.pose.t.cast<float>();
+    nn::PoseQuery qt = q;
+    qt.translation = &t;
+    eng.estimate({qt}, op, cp, &out);
+    CHECK(out[0].pose.R == plain.pose.R);
+    t += Eigen::Vector3f(30, -20, 15);
+    eng.estimate({qt}, op, cp, &out);
+    CHECK(out[0].pose.t == t.cast<double>());
+    CHECK((out[0].pose.R - plain.pose.R).norm() > 1e-6);
+
+    // No flagged point: too few object points, and the rows taken are empty.
+    std::vector<uint8_t> none(size_t(crop.rows()), 0);
+    qm.object_mask = &none;
+    eng.estimate({qm}, op, cp, &out);
+    CHECK_FALSE(out[0].ok);
+    CHECK(out[0].status == "too few object points");
+    CHECK(rows_m.empty());
+
+    // Bad input is named.
+    std::vector<uint8_t> short_mask(10, 1);
+    qm.object_mask = &short_mask;
+    CHECK_THROWS_WITH(eng.estimate({qm}, op, cp, &out),
+                      Catch::Contains("object mask of 10 flags for 1500 crop points"));
+    Eigen::Vector3f bad(0, std::nanf(""), 700);
+    qt.translation = &bad;
+    CHECK_THROWS_WITH(eng.estimate({qt}, op, cp, &out), Catch::Contains("non-finite translation"));
 }
 
 TEST_CASE("PoseEngine: no heap allocation per frame after warm-up", "[nn][engine]") {

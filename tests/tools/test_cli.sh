@@ -45,6 +45,14 @@ expect 2 "$B/train/g2l_eval" --detector d.g2l
 has "needs --root"
 expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --detector d.g2l --root r
 has "needs --boxes det"
+expect 2 "$B/train/g2l_train" --average out.g2l one.g2l
+has "At least 3 required"
+expect 1 "$B/train/g2l_train" --average "$T/avg.g2l" "$T/none.g2l" "$T/none2.g2l"
+has "none.g2l"
+expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --root r --oracle mask
+has "mask"
+expect 2 "$B/train/g2l_eval" --detector d.g2l --root r --oracle seg
+has "--oracle seg needs --checkpoint"
 expect 1 "$B/train/g2l_eval" --detector "$T/none.g2l" --root "$S/tests/data/ycbv_mini" --split train_real
 has "none.g2l"
 expect 2 "$B/apps/g2l_infer" --depth d.png --camera c.json --detector d.g2l
@@ -137,4 +145,10 @@ grep -q "^0,1,14,0.700000," "$T/res.csv" || fail "BOP CSV: object 14 should take
 [ "$(wc -l < "$T/inst.jsonl")" -eq 4 ] || fail "instances: expected 4 lines"
 [ "$(grep -c '"status":"no detection"' "$T/inst.jsonl")" -eq 2 ] || fail "image 11 has no detections: 2 misses expected"
 [ -s "$T/vis/000000_1.png" ] && [ -s "$T/vis/accuracy_obj_8.png" ] || fail "g2l_eval --vis images"
+# --oracle seg+t: the GT translation is the estimate's (translation error ~0 on every instance).
+expect 0 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
+    --oracle seg+t --json "$T/oracle.json"
+grep -q "Oracle inputs (seg+t)" "$T/out" || fail "g2l_eval --oracle: the table names the oracle"
+grep -q '"oracle": "seg+t"' "$T/oracle.json" || fail "g2l_eval --oracle: the JSON names the oracle"
+grep -q '"seg_iou": 1.0' "$T/oracle.json" || fail "g2l_eval --oracle seg+t: seg IoU 1"
 echo "cli: every check passed"

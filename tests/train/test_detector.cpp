@@ -282,6 +282,11 @@ TEST_CASE("detector: evaluation and g2l_eval's detector boxes run on real frames
         REQUIRE(row.found_top3 >= row.found);
         REQUIRE(row.found_top3 <= row.instances);
     }
+    // nn::detect gives its detections best first (evaluate_detector's top-3 relies on it).
+    const data::Image img = ds.load_rgb(ds.frames()[0]);
+    const auto raw = nn::detect(*det.net, det.downscale, img.data.data(), img.w, img.h, 0.0f, 10);
+    REQUIRE(raw.size() > 2);
+    for (size_t i = 1; i < raw.size(); ++i) CHECK(raw[i - 1].score >= raw[i].score);
     const auto dets = train::run_detector_on(det, ds, 0.0f);
     REQUIRE(!dets.empty());
     for (const auto& d : dets) {

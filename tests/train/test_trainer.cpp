@@ -192,7 +192,32 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
     }
     CHECK_THAT(train::report_json(r), Catch::Contains("acc_addsym_10") &&
                                           Catch::Contains("rot_err_sym_deg_median") &&
-                                          Catch::Contains("acc_adds_all_10"));
+                                          Catch::Contains("acc_adds_all_10") &&
+                                          Catch::Contains("\"oracle\": \"none\""));
+
+    // The seg IoU against training's label rule is a fraction; with the ground-truth object
+    // points (oracle seg) it is 1; with the GT translation too the translation error is 0 and
+    // the errors are the rotation's alone.
+    std::vector<train::InstanceResult> plain, oracle;
+    train::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, &plain);
+    train::EvalOptions eo2 = eo;
+    eo2.oracle_seg = true;
+    eo2.oracle_t = true;
+    const auto ro = train::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo2, &oracle);
+    CHECK(ro.oracle == "seg+t");
+    CHECK_THAT(train::report_markdown(ro), Catch::Contains("Oracle inputs (seg+t)"));
+    REQUIRE(plain.size() == 4);
+    REQUIRE(oracle.size() == 4);
+    for (size_t i = 0; i < plain.size(); ++i) {
+        INFO("instance " << i);
+        CHECK(plain[i].seg_iou >= 0);
+        CHECK(plain[i].seg_iou <= 1);
+        CHECK(oracle[i].seg_iou == 1.0);
+        REQUIRE(oracle[i].found);
+        CHECK(oracle[i].trans_mm < 1e-3);  // the GT translation, rounded to float
+    }
+    for (const auto& s : ro.objects) CHECK(s.seg_iou == 1.0);
+    CHECK(ro.average.seg_iou == 1.0);
 
     // An inference export: no optimizer state, the same model, loadable by load_model.
     const std::string ex = dir + "/export.g2l";
@@ -214,6 +239,63 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
     CHECK(r2.average.auc_adds == r.average.auc_adds);
     // A training run cannot resume from an export, and bad paths name the file.
     CHECK_THROWS_WITH(train::export_model(cut, dir + "/x.g2l"), Catch::Contains("cut.g2l"));
+    CHECK_FALSE(fs::exists(dir + "/x.g2l"));
+}
+
+TEST_CASE("g2l_train --average: the mean of a run's checkpoints, loadable; mismatches are named",
+          "[train][eval]") {
+    const std::string dir = testing::temp_dir("average");
+    nlohmann::json j = nlohmann::json::parse(tiny_config(dir + "/run", 2, 8));
+    j["train"]["checkpoint_every"] = 1;
+    train::TrainOptions opt;
+    opt.progress = false;
+    train::run_training(train::parse_config_text(j.dump(), "avg.json"), opt);
+    const std::string e1 = dir + "/run/epoch_1.g2l", e2 = dir + "/run/epoch_2.g2l";
+    REQUIRE(fs::exists(e1));
+    REQUIRE(fs::exists(e2));
+    const std::string out = dir + "/avg.g2l";
+    const int64_t bytes = train::export_average({e1, e2}, out);
+    CHECK(bytes == int64_t(fs::file_size(out)));
+    const Checkpoint a = load_checkpoint(e1), b = load_checkpoint(e2), m = load_checkpoint(out);
+    int differing = 0;
+    for (const auto& [name, t] : m.tensors) {
+        INFO(name);
+        REQUIRE(a.tensors.count("model." + name.substr(6)));
+        const Tensor &ta = a.tensors.at(name), &tb = b.tensors.at(name);
+        REQUIRE(t.shape() == ta.shape());
+        if (t.dtype() != DType::F32) continue;
+        for (int64_t k = 0; k < t.numel(); ++k) {
+            const double want = (double(ta.data<float>()[k]) + double(tb.data<float>()[k])) / 2;
+            REQUIRE(t.data<float>()[k] == Approx(want).margin(1e-6));
+            differing += ta.data<float>()[k] != tb.data<float>()[k];
+        }
+    }
+    CHECK(differing > 0);  // the two epochs' weights differ, so the mean is not a copy
+    for (const auto& [name, t] : m.tensors) CHECK(name.rfind("model.", 0) == 0);  // no Adam state
+    const nlohmann::json meta = nlohmann::json::parse(m.meta_json);
+    CHECK(meta.at("format") == "g2l-model");
+    REQUIRE(meta.at("trained").at("averaged").size() == 2);
+    CHECK(meta["trained"]["averaged"][1]["source"] == e2);
+    train::LoadedModel lm = train::load_model(out);
+    CHECK(lm.class_of == std::map<int, int>{{8, 0}, {14, 1}});
+    // A checkpoint of the same run with itself is itself, to the bit.
+    train::export_average({e2, e2}, dir + "/same.g2l");
+    const Checkpoint same = load_checkpoint(dir + "/same.g2l");
+    for (const auto& [name, t] : same.tensors) {
+        INFO(name);
+        CHECK(std::memcmp(t.data(), b.tensors.at(name).data(), t.nbytes()) == 0);
+    }
+    // Bad input: one checkpoint, another network, a truncated file; nothing is written.
+    CHECK_THROWS_WITH(train::export_average({e1}, dir + "/x.g2l"), Catch::Contains("at least two"));
+    nlohmann::json wide = nlohmann::json::parse(tiny_config(dir + "/wide", 1, 8));
+    wide["model"]["width"] = 0.25;
+    train::run_training(train::parse_config_text(wide.dump(), "wide.json"), opt);
+    CHECK_THROWS_WITH(train::export_average({e1, dir + "/wide/last.g2l"}, dir + "/x.g2l"),
+                      Catch::Contains("wide/last.g2l") && Catch::Contains("'model'"));
+    const std::string cut = dir + "/cut.g2l";
+    fs::copy_file(e2, cut);
+    fs::resize_file(cut, fs::file_size(cut) / 3);
+    CHECK_THROWS_WITH(train::export_average({e1, cut}, dir + "/x.g2l"), Catch::Contains("cut.g2l"));
     CHECK_FALSE(fs::exists(dir + "/x.g2l"));
 }
 

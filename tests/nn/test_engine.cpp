@@ -171,7 +171,7 @@ TEST_CASE("PoseEngine: several objects batched give each object's own result, fa
 }
 
 TEST_CASE("PoseEngine: given object points and translation replace the seg net's and the "
-          "T-net's; the rows taken are reported", "[nn][engine]") {
+          "T-net's, the rows taken are reported", "[nn][engine]") {
     nn::G2LConfig c;
     c.num_classes = 2;
     c.width = 0.25;

@@ -242,7 +242,7 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
     CHECK_FALSE(fs::exists(dir + "/x.g2l"));
 }
 
-TEST_CASE("g2l_train --average: the mean of a run's checkpoints, loadable; mismatches are named",
+TEST_CASE("g2l_train --average: the mean of a run's checkpoints, loadable, mismatches are named",
           "[train][eval]") {
     const std::string dir = testing::temp_dir("average");
     nlohmann::json j = nlohmann::json::parse(tiny_config(dir + "/run", 2, 8));

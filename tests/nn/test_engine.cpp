@@ -66,6 +66,16 @@ nn::G2LNet make_net(const nn::G2LConfig& c, uint64_t seed) {
     return net;
 }
 
+// A width-0.25 network with per-class heads and the kp_rms rotation unit.
+nn::G2LConfig class_heads_config(int num_classes) {
+    nn::G2LConfig c;
+    c.num_classes = num_classes;
+    c.width = 0.25;
+    c.class_heads = true;
+    c.rot_unit = "kp_rms";
+    return c;
+}
+
 void check_same(const nn::PoseEstimate& a, const nn::PoseEstimate& b) {
     REQUIRE(a.ok == b.ok);
     CHECK(a.status == b.status);
@@ -143,12 +153,7 @@ TEST_CASE("PoseEngine: the poses of the eval-mode graph for every network varian
 
 TEST_CASE("PoseEngine: several objects batched give each object's own result, failures keep "
           "their status", "[nn][engine]") {
-    nn::G2LConfig c;
-    c.num_classes = 3;
-    c.width = 0.25;
-    c.class_heads = true;
-    c.rot_unit = "kp_rms";
-    nn::G2LNet net = make_net(c, 7);
+    nn::G2LNet net = make_net(class_heads_config(3), 7);
     nn::PoseEngine eng(net);
     const auto k0 = box_keypoints(40, 30, 55), k1 = box_keypoints(90, 20, 20);
     const geom::Points a = make_crop(2000, 1), b = make_crop(900, 2), tiny = make_crop(5, 3);
@@ -172,12 +177,7 @@ TEST_CASE("PoseEngine: several objects batched give each object's own result, fa
 
 TEST_CASE("PoseEngine: given object points and translation replace the seg net's and the "
           "T-net's, the rows taken are reported", "[nn][engine]") {
-    nn::G2LConfig c;
-    c.num_classes = 2;
-    c.width = 0.25;
-    c.class_heads = true;
-    c.rot_unit = "kp_rms";
-    nn::G2LNet net = make_net(c, 11);
+    nn::G2LNet net = make_net(class_heads_config(2), 11);
     nn::PoseEngine eng(net);
     const auto kps = box_keypoints(40, 30, 55);
     const geom::Points crop = make_crop(1500, 5);

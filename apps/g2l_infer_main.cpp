@@ -96,12 +96,25 @@ int main(int argc, char** argv) {
     app.add_option("--models-info", models_info,
                    "BOP models_info.json, for model files that do not store the diameters");
     app.add_option("--threads", threads, "CPU threads (0 = all)")->check(g2l::cli::at_least(0));
+    std::string refine = "none", meshes;
+    app.add_option("--refine", refine,
+                   "depth refinement against the objects' meshes (needs --meshes): icp, or turns "
+                   "(ICP also from the pose's near-symmetric turns; the best depth fit wins); "
+                   "default none")
+        ->check(CLI::IsMember({"none", "icp", "turns"}));
+    app.add_option("--meshes", meshes, "folder of the objects' meshes (obj_000005.ply ...; BOP "
+                                       "models/), for --refine");
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_infer"); rc >= 0) return rc;
     if (int(!boxes_path.empty()) + int(!box_args.empty()) + int(!detector_path.empty()) != 1) {
         std::fprintf(stderr, "g2l_infer: give exactly one of --boxes, --box and --detector (see "
                              "g2l_infer --help)\n");
+        return g2l::cli::kUsageError;
+    }
+    if (refine != "none" && meshes.empty()) {
+        std::fprintf(stderr, "g2l_infer: --refine %s needs --meshes FOLDER (the objects' "
+                             "obj_NNNNNN.ply meshes)\n", refine.c_str());
         return g2l::cli::kUsageError;
     }
     if (!detector_path.empty() && rgb_path.empty()) {
@@ -143,6 +156,10 @@ int main(int argc, char** argv) {
         opt.threads = threads;
         opt.models_info = models_info;
         opt.detector = detector_path;
+        opt.refine = refine == "icp"     ? g2l::Refinement::icp
+                     : refine == "turns" ? g2l::Refinement::turns
+                                         : g2l::Refinement::none;
+        opt.meshes = meshes;
         if (!detector_path.empty() && app.count("--min-score")) opt.min_detection_score = min_score;
         g2l::PoseEstimator est(model, opt);
         g2l::FrameView f;
@@ -171,7 +188,9 @@ int main(int argc, char** argv) {
                                       {"segmentation", p.timings.segmentation_ms},
                                       {"translation", p.timings.translation_ms},
                                       {"rotation", p.timings.rotation_ms},
+                                      {"refine", p.timings.refine_ms},
                                       {"total", p.timings.total_ms}}}};
+            if (p.refined) o["fit_mm"] = p.fit_mm;
             if (p.ok()) {
                 o["R"] = p.R;
                 o["t"] = p.t;

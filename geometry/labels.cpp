@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "geometry/labels.h"
 
+#include <Eigen/Eigenvalues>
 #include <nanoflann.hpp>
 
 #include <algorithm>
@@ -108,6 +109,38 @@ float ModelKdTree::nearest(const Eigen::Vector3f& q, int* index) const {
     impl_->index->knnSearch(q.data(), 1, &idx, &d2);
     if (index) *index = static_cast<int>(idx);
     return std::sqrt(d2);
+}
+
+int ModelKdTree::knn(const Eigen::Vector3f& q, int k, int* idx, float* d2) const {
+    G2L_CHECK(k >= 1, "ModelKdTree::knn: k must be >= 1, got ", k);
+    std::vector<uint32_t> ix(static_cast<size_t>(k));
+    const size_t found = impl_->index->knnSearch(q.data(), size_t(k), ix.data(), d2);
+    for (size_t i = 0; i < found; ++i) idx[i] = static_cast<int>(ix[i]);
+    return static_cast<int>(found);
+}
+
+Points ModelKdTree::normals(int k) const {
+    G2L_CHECK(k >= 3, "ModelKdTree::normals: k must be >= 3, got ", k);
+    const Points& pts = points();
+    const int64_t n = pts.rows();
+    Points out(n, 3);
+#pragma omp parallel for schedule(dynamic, 1024)
+    for (int64_t i = 0; i < n; ++i) {
+        std::vector<int> idx(static_cast<size_t>(k));
+        std::vector<float> d2(static_cast<size_t>(k));
+        const int m = knn(pts.row(i).transpose(), k, idx.data(), d2.data());
+        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        for (int j = 0; j < m; ++j) mean += pts.row(idx[size_t(j)]).cast<double>().transpose();
+        mean /= std::max(1, m);
+        Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+        for (int j = 0; j < m; ++j) {
+            const Eigen::Vector3d d = pts.row(idx[size_t(j)]).cast<double>().transpose() - mean;
+            C += d * d.transpose();
+        }
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+        out.row(i) = es.eigenvectors().col(0).cast<float>().transpose();
+    }
+    return out;
 }
 
 std::vector<uint8_t> ModelKdTree::label_points(const Points& cam_pts, const Pose& pose,

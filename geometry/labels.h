@@ -42,6 +42,15 @@ public:
     /// non-null. Ties between equidistant points are resolved by the tree, not by index.
     float nearest(const Eigen::Vector3f& q, int* index = nullptr) const;
 
+    /// The k nearest tree points of q (k >= 1, at most size()), nearest first: row indices to
+    /// idx[0..k), squared distances to d2[0..k). Returns the number found.
+    int knn(const Eigen::Vector3f& q, int k, int* idx, float* d2) const;
+
+    /// Unit surface normals at the tree points (N x 3, sign arbitrary): the direction of least
+    /// spread of each point's k nearest neighbours (PCA). OpenMP over points. Throws g2l::Error
+    /// if k < 3.
+    Points normals(int k = 10) const;
+
     /// Labels camera-frame points: 1 if the distance from R^T (p - t) (the point in the model
     /// frame) to the nearest tree point is < threshold_mm, else 0 (also 0 for a non-finite
     /// point). OpenMP over points.

@@ -5,13 +5,19 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
 #include <mutex>
 
 #include "core/error.h"
 #include "core/threads.h"
 #include "geometry/camera.h"
 #include "geometry/crop.h"
+#include "geometry/labels.h"
+#include "geometry/mesh_io.h"
 #include "geometry/model_info.h"
+#include "geometry/refine.h"
 #include "nn/models/detector.h"
 #include "nn/models/g2l_io.h"
 #include "nn/models/g2l_engine.h"
@@ -44,6 +50,15 @@ const char* to_string(PoseStatus s) {
     return "unknown status";
 }
 
+const char* to_string(Refinement r) {
+    switch (r) {
+        case Refinement::none: return "none";
+        case Refinement::icp: return "icp";
+        case Refinement::turns: return "turns";
+    }
+    return "unknown refinement";
+}
+
 struct PoseEstimator::Impl {
     std::string path;
     nn::LoadedModel model;
@@ -58,6 +73,14 @@ struct PoseEstimator::Impl {
     std::vector<nn::PoseQuery> queries;
     std::vector<size_t> query_box;  // box index of each query
     std::vector<nn::PoseEstimate> results;
+    std::vector<std::vector<int>> object_rows;  // per query: the crop rows taken as object
+    // EstimatorOptions::refine: each object's mesh surface (model frame) and box.
+    struct Mesh {
+        std::unique_ptr<geom::ModelKdTree> tree;
+        geom::Points normals;  // of the tree points (point-to-plane ICP)
+        geom::ModelInfo info;
+    };
+    std::map<int, Mesh> meshes;
 };
 
 PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptions& options)
@@ -74,6 +97,12 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
                   options.min_detection_score <= 1,
               "PoseEstimator: min_detection_score must be in [0, 1], got ",
               options.min_detection_score);
+    G2L_CHECK(options.refine == Refinement::none || options.refine == Refinement::icp ||
+                  options.refine == Refinement::turns,
+              "PoseEstimator: refine must be none, icp or turns, got ", int(options.refine));
+    G2L_CHECK(options.refine == Refinement::none || !options.meshes.empty(),
+              "PoseEstimator: refine = ", to_string(options.refine),
+              " needs EstimatorOptions::meshes (the folder of the objects' obj_NNNNNN.ply meshes)");
     m.model = nn::load_model(model_path);
     if (!options.detector.empty())
         m.detector = std::make_unique<nn::LoadedDetector>(nn::load_detector(options.detector));
@@ -87,6 +116,27 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
             if (!m.model.objects.count(id) && infos.count(id))
                 m.model.objects[id] = {infos.at(id).diameter, infos.at(id).symmetric};
         }
+    }
+    if (options.refine != Refinement::none) {
+        // The meshes of the model's objects found in the folder (an object without one keeps
+        // the networks' pose: ObjectPose::refined tells).
+        std::error_code ec;
+        G2L_CHECK(std::filesystem::is_directory(options.meshes, ec),
+                  "PoseEstimator: EstimatorOptions::meshes '", options.meshes, "' is not a folder");
+        for (const auto& [id, cls] : m.model.class_of) {
+            (void)cls;
+            char name[32];
+            std::snprintf(name, sizeof name, "/obj_%06d.ply", id);
+            const std::string file = options.meshes + name;
+            if (!std::filesystem::exists(file, ec)) continue;
+            const geom::Mesh mesh = geom::load_mesh(file);
+            Impl::Mesh& me = m.meshes[id];
+            me.tree = std::make_unique<geom::ModelKdTree>(geom::ModelKdTree::from_mesh(mesh));
+            me.normals = me.tree->normals();
+            me.info = geom::compute_model_info(mesh.vertices);
+        }
+        G2L_CHECK(!m.meshes.empty(), "PoseEstimator: EstimatorOptions::meshes '", options.meshes,
+                  "' has no obj_NNNNNN.ply mesh of the model's objects");
     }
     for (const auto& [id, cls] : m.model.class_of) {
         (void)cls;
@@ -195,6 +245,11 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
         m.query_box.push_back(i);
     }
     // 2. The networks for all boxes of the frame at once (nn::PoseEngine).
+    const bool refine = m.options.refine != Refinement::none;
+    if (refine) {
+        m.object_rows.resize(m.queries.size());
+        for (size_t q = 0; q < m.queries.size(); ++q) m.queries[q].object_rows = &m.object_rows[q];
+    }
     if (!m.queries.empty()) m.engine->estimate(m.queries, m.object_points, m.crop_points, &m.results);
     for (size_t q = 0; q < m.queries.size(); ++q) {
         const nn::PoseEstimate& est = m.results[q];
@@ -207,12 +262,35 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
             p.status = est.status == "too few crop points" ? PoseStatus::too_few_points
                                                            : PoseStatus::too_few_object_points;
         } else {
+            nn::PoseEstimate& e = m.results[q];
+            if (refine) {
+                // 3. Depth refinement against the mesh (geometry/refine.h).
+                const auto t0 = Clock::now();
+                const std::vector<int>& rows = m.object_rows[q];
+                const geom::Points& crop = *m.queries[q].crop;
+                geom::Points obs(int64_t(rows.size()), 3);
+                for (size_t i = 0; i < rows.size(); ++i) obs.row(int64_t(i)) = crop.row(rows[i]);
+                const auto mesh_it = m.meshes.find(p.obj_id);
+                if (obs.rows() >= 3 && mesh_it != m.meshes.end()) {
+                    const Impl::Mesh& me = mesh_it->second;
+                    geom::RefineOptions ro;
+                    ro.hypotheses = m.options.refine == Refinement::turns;
+                    const geom::DepthImage di{depth, K};
+                    const geom::RefineResult rr =
+                        geom::refine_pose(*me.tree, me.info, obs, e.pose, ro, &di, &me.normals);
+                    e.pose = rr.pose;
+                    p.fit_mm = rr.fit_mm;
+                    p.refined = true;
+                }
+                p.timings.refine_ms = ms_since(t0);
+            }
             for (int r = 0; r < 3; ++r) {
                 for (int c = 0; c < 3; ++c) p.R[size_t(r * 3 + c)] = est.pose.R(r, c);
                 p.t[size_t(r)] = est.pose.t[r];
             }
         }
-        p.timings.total_ms = p.timings.crop_ms + est.ms_seg + est.ms_t + est.ms_rot;
+        p.timings.total_ms =
+            p.timings.crop_ms + est.ms_seg + est.ms_t + est.ms_rot + p.timings.refine_ms;
     }
     return out;
 }

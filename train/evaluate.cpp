@@ -16,6 +16,7 @@
 #include "geometry/crop.h"
 #include "geometry/labels.h"
 #include "geometry/metrics.h"
+#include "geometry/refine.h"
 #include "geometry/symmetry.h"
 #include "nn/models/g2l_engine.h"
 #include "nn/models/g2l_pose.h"
@@ -76,6 +77,7 @@ struct ObjGeom {
     geom::Points pts;
     std::vector<geom::SymmetryTransform> syms;
     std::unique_ptr<geom::ModelKdTree> tree;  // mesh vertices + surface samples (label rule)
+    geom::Points normals;                     // the tree points' normals (refinement only)
 };
 
 // IoU of `taken` with the flagged rows of `gt`, both restricted to the rows in `seen` (each
@@ -119,6 +121,8 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
             if (it == best_det.end() || d.score > it->second->score) best_det[k] = &d;
         }
     }
+    G2L_CHECK(opt.refine == "none" || opt.refine == "icp" || opt.refine == "turns",
+              "evaluate: refine must be none, icp or turns, got '", opt.refine, "'");
     G2L_CHECK(opt.crop == "sphere" || opt.crop == "frustum" || opt.crop == "slab",
               "evaluate: crop must be sphere, frustum or slab, got '", opt.crop, "'");
     const bool was_training = net.is_training();
@@ -131,7 +135,7 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
     std::map<int, ObjectMeta> meta;
     std::map<int, ObjGeom> model_geom;
     EvalReport rep;
-    double t_crop = 0, t_seg = 0, t_t = 0, t_rot = 0;
+    double t_crop = 0, t_seg = 0, t_t = 0, t_rot = 0, t_refine = 0;
     for (const data::Frame& f : ds.frames()) {
         if (opt.max_instances > 0 && rep.instances >= opt.max_instances) break;
         bool any = false;
@@ -154,6 +158,7 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                 g.pts = p;
                 g.tree = std::make_unique<geom::ModelKdTree>(geom::ModelKdTree::from_mesh(mesh));
                 g.syms = geom::geometric_symmetries(*g.tree, om.info);
+                if (opt.refine != "none") g.normals = g.tree->normals();
                 model_geom[inst.obj_id] = std::move(g);
             }
             if (!meta.count(inst.obj_id))
@@ -212,12 +217,12 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
             const double ms_crop = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
             t_crop += ms_crop;
             nn::PoseEstimate est;
+            std::vector<int> taken;  // crop rows taken as object
             if (have) {
                 // Ground-truth object points of the crop (outside the timed stages).
                 const std::vector<uint8_t> gt_obj = model_geom[inst.obj_id].tree->label_points(
                     crop, inst.pose, float(opt.label_threshold_mm));
                 const Eigen::Vector3f gt_t = inst.pose.t.cast<float>();
-                std::vector<int> taken;
                 nn::PoseQuery q;
                 q.crop = &crop;
                 q.class_index = class_of.at(inst.obj_id);
@@ -238,6 +243,29 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                 results.push_back(res);
                 continue;
             }
+            if (opt.refine != "none") {
+                const auto tr = Clock::now();
+                geom::Points obs(int64_t(taken.size()), 3);
+                for (size_t i = 0; i < taken.size(); ++i) obs.row(int64_t(i)) = crop.row(taken[i]);
+                if (obs.rows() >= 3) {
+                    geom::RefineOptions ro;
+                    ro.hypotheses = opt.refine == "turns";
+                    geom::DepthImage di{depth.data(), f.K};
+                    di.K.width = w;
+                    di.K.height = h;
+                    const geom::RefineResult rr = geom::refine_pose(
+                        *model_geom[inst.obj_id].tree, om.info, obs, est.pose, ro, &di,
+                        &model_geom[inst.obj_id].normals);
+                    est.pose = rr.pose;
+                    res.refine_hyp = rr.hypothesis;
+                    res.fit_mm = rr.fit_mm;
+                    res.gt_fit_mm = geom::fit_error(*model_geom[inst.obj_id].tree, obs, inst.pose,
+                                                    0.1 * om.info.diameter);
+                }
+                const double ms = std::chrono::duration<double, std::milli>(Clock::now() - tr).count();
+                res.ms += ms;
+                t_refine += ms;
+            }
             res.est = est.pose;
             const ObjGeom& og = model_geom[inst.obj_id];
             const geom::Points& mp = og.pts;
@@ -254,11 +282,13 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
     }
     const double n_inst = rep.instances;
     rep = aggregate(results, meta);
+    rep.refine = opt.refine;
     rep.oracle = opt.oracle_seg ? (opt.oracle_t ? "seg+t" : "seg") : opt.oracle_t ? "t" : "none";
     if (instances_out) *instances_out = results;
     if (n_inst > 0) {
         rep.ms_crop = t_crop / n_inst; rep.ms_seg = t_seg / n_inst;
         rep.ms_t = t_t / n_inst; rep.ms_rot = t_rot / n_inst;
+        rep.ms_refine = t_refine / n_inst;
     }
     net.train(was_training);
     return rep;
@@ -356,6 +386,12 @@ std::string report_markdown(const EvalReport& r) {
              : r.oracle == "t" ? std::string("ground-truth translation")
                                : std::string("ground-truth object points and translation")) +
             " replace the network's.\n\n";
+    if (r.refine != "none")
+        s += "Depth refinement (" + r.refine + "): " +
+             (r.refine == "icp" ? std::string("ICP of the object points onto the mesh")
+                                : std::string("ICP onto the mesh from the pose and its near-symmetric "
+                                              "turns, the best depth fit wins")) +
+             ".\n\n";
     s += "| object | n | miss | ADD(-S) acc 0.1d (%) | ADD-S acc 0.1d (%) | ADD-sym acc 0.1d (%) | "
                     "rot err sym median (deg) | ADD-S AUC | ADD AUC | rot err (deg) | trans err (mm) | trans err median (mm) | seg IoU |\n"
                     "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
@@ -377,13 +413,13 @@ std::string report_markdown(const EvalReport& r) {
     for (const auto& o : r.objects)
         row(o, std::to_string(o.obj_id) + " " + o.name + (o.symmetric ? " (sym)" : ""));
     row(r.average, "**average**");
-    const double total = r.ms_crop + r.ms_seg + r.ms_t + r.ms_rot;
+    const double total = r.ms_crop + r.ms_seg + r.ms_t + r.ms_rot + r.ms_refine;
     std::snprintf(line, sizeof line,
                   "\nTime per instance (ms, mean of %d; the paper's Table 5 stages):\n\n"
-                  "| crop | segmentation | translation | rotation (blocks A, B, C + Kabsch) | total | fps |\n"
-                  "|---|---|---|---|---|---|\n"
-                  "| %.2f | %.2f | %.2f | %.2f | %.2f | %.1f |\n",
-                  r.instances, r.ms_crop, r.ms_seg, r.ms_t, r.ms_rot, total,
+                  "| crop | segmentation | translation | rotation (blocks A, B, C + Kabsch) | refinement | total | fps |\n"
+                  "|---|---|---|---|---|---|---|\n"
+                  "| %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.1f |\n",
+                  r.instances, r.ms_crop, r.ms_seg, r.ms_t, r.ms_rot, r.ms_refine, total,
                   total > 0 ? 1000.0 / total : 0.0);
     s += line;
     return s;
@@ -407,7 +443,9 @@ std::string report_json(const EvalReport& r) {
     };
     for (const auto& o : r.objects) j["objects"].push_back(obj(o));
     j["average"] = obj(r.average);
-    j["timing_ms"] = {{"crop", r.ms_crop}, {"seg", r.ms_seg}, {"t", r.ms_t}, {"rot", r.ms_rot}};
+    j["timing_ms"] = {{"crop", r.ms_crop}, {"seg", r.ms_seg}, {"t", r.ms_t}, {"rot", r.ms_rot},
+                      {"refine", r.ms_refine}};
+    j["refine"] = r.refine;
     j["instances"] = r.instances;
     j["oracle"] = r.oracle;
     return j.dump(2);

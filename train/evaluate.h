@@ -37,6 +37,9 @@ struct EvalOptions {
     bool oracle_seg = false;
     bool oracle_t = false;
     double label_threshold_mm = 8.0;  ///< the object-point rule of the seg IoU and oracle_seg
+    /// Depth refinement of each pose (geometry/refine.h) against the dataset's mesh: "none",
+    /// "icp" (ICP from the network's pose) or "turns" (also from its near-symmetric turns).
+    std::string refine = "none";
 };
 
 /// Per-object and overall figures. Misses (no pose) count as failures, with distance inf in
@@ -68,6 +71,8 @@ struct EvalReport {
     std::vector<ObjectScores> objects;  ///< sorted by obj_id
     ObjectScores average;               ///< objects' mean (acc, AUCs); "all" counts for others
     double ms_crop = 0, ms_seg = 0, ms_t = 0, ms_rot = 0;  ///< mean per instance
+    double ms_refine = 0;                  ///< depth refinement, mean per instance
+    std::string refine = "none";           ///< EvalOptions::refine
     int instances = 0;
     std::string oracle = "none";  ///< oracle inputs used: none, seg, t or seg+t (EvalOptions)
 };
@@ -90,7 +95,10 @@ struct InstanceResult {
     double score = 1;              ///< box score (1 for GT boxes)
     geom::Box2i box;               ///< the box used (clipped to the image)
     geom::Pose est, gt;            ///< estimate (when found) and ground truth
-    double ms = 0;                 ///< crop + networks, this instance
+    double ms = 0;                 ///< crop + networks (+ refinement), this instance
+    int refine_hyp = -1;           ///< refinement: -1 none, 0 the network's pose, else the turn
+    double fit_mm = -1;            ///< refinement: the final fit (geometry/refine.h)
+    double gt_fit_mm = -1;         ///< refinement: the same fit for the ground-truth pose
 };
 
 /// What aggregation needs to know of an object.

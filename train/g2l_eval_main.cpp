@@ -58,6 +58,11 @@ void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::train::I
                 j["add_mm"] = r.add_mm;
                 j["adds_mm"] = r.adds_mm;
                 j["addsym_mm"] = r.addsym_mm;
+                if (r.refine_hyp >= 0) {
+                    j["refine_hypothesis"] = r.refine_hyp;
+                    j["fit_mm"] = r.fit_mm;
+                    j["gt_fit_mm"] = r.gt_fit_mm;
+                }
                 j["rot_err_deg"] = r.rot_deg;
                 j["rot_err_sym_deg"] = r.rot_sym_deg;
                 j["trans_err_mm"] = r.trans_mm;
@@ -178,6 +183,12 @@ int main(int argc, char** argv) {
                    "the segmentation), t (the GT translation replaces the T-net's and centres the "
                    "rotation input), seg+t (both: the errors are the rotation's alone); default none")
         ->check(CLI::IsMember({"none", "seg", "t", "seg+t"}));
+    std::string refine = "none";
+    app.add_option("--refine", refine,
+                   "depth refinement of each pose against the dataset's mesh: icp (ICP of the "
+                   "object points from the network's pose), turns (also from the pose turned by "
+                   "the model box's near-symmetric turns; the best depth fit wins); default none")
+        ->check(CLI::IsMember({"none", "icp", "turns"}));
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_eval"); rc >= 0) return rc;
@@ -332,6 +343,7 @@ int main(int argc, char** argv) {
             eo.centre_from_mask = centre_from_mask;
             eo.oracle_seg = oracle == "seg" || oracle == "seg+t";
             eo.oracle_t = oracle == "t" || oracle == "seg+t";
+            eo.refine = refine;
             if (eo.min_visib_fract > 0) {
                 bool annotated = false;
                 for (const auto& f : sets_to_eval[i].second.frames())

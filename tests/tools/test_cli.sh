@@ -122,6 +122,17 @@ expect 0 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --rg
 [ -s "$T/vis.png" ] || fail "g2l_infer --vis wrote no image"
 [ "$(grep -c '"status": "ok"' "$T/poses.json")" -eq 2 ] || fail "g2l_infer: expected 2 poses in $(cat "$T/poses.json")"
 grep -q '"status": "box outside image"' "$T/poses.json" || fail "the box right of the image got no status"
+# --refine turns with the fixture meshes: both poses refined (a fit each); without --meshes: an error.
+expect 0 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" \
+    --camera "$F/scene_camera.json" --image-id 1 --boxes "$T/dets.json" --refine turns \
+    --meshes "$S/tests/data/ycbv_mini/models" --json "$T/refined.json"
+[ "$(grep -c '"fit_mm"' "$T/refined.json")" -eq 2 ] || fail "g2l_infer --refine: expected 2 fits in $(cat "$T/refined.json")"
+expect 2 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" \
+    --camera "$F/scene_camera.json" --image-id 1 --boxes "$T/dets.json" --refine icp
+has "--refine icp needs --meshes"
+expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" \
+    --camera "$F/scene_camera.json" --image-id 1 --boxes "$T/dets.json" --refine icp --meshes "$T"
+has "has no obj_NNNNNN.ply mesh"
 # Degenerate inputs at the inference tools: an 8-bit image as depth, an RGB image of another
 # size, a zero focal length: one clear line each.
 expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/rgb/000001.png" --camera "$F/scene_camera.json" --image-id 1 --box 8,186,132,139,191
@@ -151,4 +162,12 @@ expect 0 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mi
 grep -q "Oracle inputs (seg+t)" "$T/out" || fail "g2l_eval --oracle: the table names the oracle"
 grep -q '"oracle": "seg+t"' "$T/oracle.json" || fail "g2l_eval --oracle: the JSON names the oracle"
 grep -q '"seg_iou": 1.0' "$T/oracle.json" || fail "g2l_eval --oracle seg+t: seg IoU 1"
+# --refine turns: ICP against the fixture meshes; the table and the JSON name it.
+expect 0 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
+    --refine turns --json "$T/refine.json" --instances "$T/refine.jsonl"
+grep -q "Depth refinement (turns)" "$T/out" || fail "g2l_eval --refine: the table names it"
+grep -q '"refine": "turns"' "$T/refine.json" || fail "g2l_eval --refine: the JSON names it"
+[ "$(grep -c '"fit_mm"' "$T/refine.jsonl")" -eq 4 ] || fail "g2l_eval --refine: a fit per instance"
+expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --root r --refine fast
+has "fast"
 echo "cli: every check passed"

@@ -1,0 +1,235 @@
+// SPDX-License-Identifier: MIT
+#include "geometry/refine.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.h"
+#include "geometry/kabsch.h"
+
+namespace g2l::geom {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// The turns tried besides the identity: the 23 other proper axis permutations of the model box
+// and the turns about each box axis at multiples of 360 / steps degrees (duplicates removed).
+std::vector<Eigen::Matrix3d> turns(int steps) {
+    std::vector<Eigen::Matrix3d> out{Eigen::Matrix3d::Identity()};
+    auto add = [&](const Eigen::Matrix3d& R) {
+        for (const auto& o : out)
+            if ((o - R).cwiseAbs().maxCoeff() < 1e-6) return;
+        out.push_back(R);
+    };
+    const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+    for (const auto& p : perms)
+        for (int s = 0; s < 8; ++s) {
+            Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
+            for (int r = 0; r < 3; ++r) R(r, p[r]) = (s >> r) & 1 ? -1.0 : 1.0;
+            if (R.determinant() > 0) add(R);
+        }
+    for (int a = 0; a < 3; ++a)
+        for (int j = 1; j < steps; ++j)
+            add(Eigen::AngleAxisd(2 * kPi * j / steps, Eigen::Vector3d::Unit(a)).toRotationMatrix());
+    return out;
+}
+
+struct Icp {
+    const ModelKdTree& tree;
+    const Points& obs;
+    const Points* normals;  // point-to-plane when set
+    double cap_mm;
+    Points M, Q;   // scratch pairs
+    std::vector<float> d;
+
+    // `iters` ICP steps from `pose`; returns the fit of the final pose.
+    double run(Pose& pose, int iters) {
+        const int64_t n = obs.rows();
+        M.resize(n, 3);
+        Q.resize(n, 3);
+        d.resize(size_t(n));
+        std::vector<int> idx(static_cast<size_t>(n));
+        const Points& mp = tree.points();
+        for (int it = 0; it < iters; ++it) {
+            const Eigen::Matrix3f Rt = pose.R.transpose().cast<float>();
+            const Eigen::Vector3f t = pose.t.cast<float>();
+            for (int64_t i = 0; i < n; ++i) {
+                const Eigen::Vector3f q = obs.row(i).transpose();
+                d[size_t(i)] = tree.nearest(Rt * (q - t), &idx[size_t(i)]);
+            }
+            // Inliers: pairs within cap_mm. (A tighter, median-based cut keeps only the points
+            // that already lie on the surface, and a pose slid along a flat face stays there.)
+            const double thr = cap_mm;
+            int64_t m = 0;
+            for (int64_t i = 0; i < n; ++i) {
+                if (d[size_t(i)] > thr) continue;
+                M.row(m) = mp.row(idx[size_t(i)]);
+                Q.row(m) = obs.row(i);
+                ++m;
+            }
+            if (m < 3) break;
+            Pose next;
+            if (normals) {
+                // Point-to-plane in the model frame: x = R^T (q - t) moves to dR x + dt with
+                // dR = I + [w]x; minimise sum ((x - m_i) . n_i + w . (x x n_i) + dt . n_i)^2.
+                Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
+                Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+                const Eigen::Matrix3d Rtd = pose.R.transpose();
+                int64_t k = 0;
+                for (int64_t i = 0; i < n; ++i) {
+                    if (d[size_t(i)] > thr) continue;
+                    const Eigen::Vector3d x = Rtd * (obs.row(i).transpose().cast<double>() - pose.t);
+                    const Eigen::Vector3d mi = mp.row(idx[size_t(i)]).transpose().cast<double>();
+                    const Eigen::Vector3d ni = normals->row(idx[size_t(i)]).transpose().cast<double>();
+                    Eigen::Matrix<double, 6, 1> J;
+                    J << x.cross(ni), ni;
+                    A += J * J.transpose();
+                    b -= J * ((x - mi).dot(ni));
+                    ++k;
+                }
+                A.diagonal().array() += 1e-6 * double(k);  // damping: flat or round surfaces
+                const Eigen::Matrix<double, 6, 1> sol = A.ldlt().solve(b);
+                if (!sol.allFinite()) break;
+                const Eigen::Vector3d w = sol.head<3>(), dtm = sol.tail<3>();
+                const double ang = w.norm();
+                const Eigen::Matrix3d dR =
+                    ang > 1e-12 ? Eigen::AngleAxisd(ang, w / ang).toRotationMatrix()
+                                : Eigen::Matrix3d::Identity();
+                // New inverse pose dR R^T (q - t) + dt = R'^T (q - t') with R' = R dR^T,
+                // t' = t - R' dt.
+                next.R = pose.R * dR.transpose();
+                next.t = pose.t - next.R * dtm;
+            } else {
+                const Points Mm = M.topRows(m), Qm = Q.topRows(m);
+                next = kabsch_pose(Mm, Qm);
+            }
+            const double dR = (next.R - pose.R).cwiseAbs().maxCoeff();
+            const double dt = (next.t - pose.t).norm();
+            pose = next;
+            if (dR < 1e-5 && dt < 1e-3) break;
+        }
+        return fit_error(tree, obs, pose, cap_mm);
+    }
+};
+
+}  // namespace
+
+double fit_error(const ModelKdTree& tree, const Points& obs, const Pose& pose, double cap_mm) {
+    if (obs.rows() == 0) return cap_mm;
+    const Eigen::Matrix3f Rt = pose.R.transpose().cast<float>();
+    const Eigen::Vector3f t = pose.t.cast<float>();
+    double sum = 0;
+    for (int64_t i = 0; i < obs.rows(); ++i) {
+        const Eigen::Vector3f q = obs.row(i).transpose();
+        sum += std::min<double>(cap_mm, tree.nearest(Rt * (q - t)));
+    }
+    return sum / double(obs.rows());
+}
+
+double free_space_violation(const Points& model_pts, const Pose& pose, const DepthImage& dimg,
+                            double tol_mm) {
+    const Intrinsics& K = dimg.K;
+    const Eigen::Matrix3f R = pose.R.cast<float>();
+    const Eigen::Vector3f t = pose.t.cast<float>();
+    int64_t viol = 0, seen = 0;
+    for (int64_t i = 0; i < model_pts.rows(); ++i) {
+        const Eigen::Vector3f q = R * model_pts.row(i).transpose() + t;
+        if (!(q.z() > 1.f)) continue;
+        const int u = int(std::lround(K.fx * q.x() / q.z() + K.cx));
+        const int v = int(std::lround(K.fy * q.y() / q.z() + K.cy));
+        if (u < 0 || v < 0 || u >= K.width || v >= K.height) continue;
+        const float z = dimg.depth_mm[int64_t(v) * K.width + u];
+        if (!(z > 0.f) || !std::isfinite(z)) continue;
+        if (q.z() > z + tol_mm) continue;  // hidden behind the measured surface
+        ++seen;
+        viol += q.z() < z - tol_mm;
+    }
+    return seen ? double(viol) / double(seen) : 0.0;
+}
+
+RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const Points& obs_all,
+                         const Pose& init, const RefineOptions& opt, const DepthImage* depth,
+                         const Points* normals) {
+    G2L_CHECK(std::isfinite(info.diameter) && info.diameter > 0,
+              "refine_pose: model diameter must be > 0, got ", info.diameter);
+    G2L_CHECK(obs_all.rows() >= 3, "refine_pose: need at least 3 observed points, got ",
+              obs_all.rows());
+    G2L_CHECK(init.R.allFinite() && init.t.allFinite(), "refine_pose: the initial pose is not finite");
+    G2L_CHECK(opt.iterations >= 0 && opt.coarse_iterations >= 0 && opt.max_points >= 3 &&
+                  opt.inlier_frac > 0 && opt.axis_steps >= 1 && opt.switch_ratio > 0 &&
+                  opt.finalists >= 0 && opt.model_points >= 1 && opt.free_space_frac > 0 &&
+                  opt.free_space_weight >= 0,
+              "refine_pose: invalid options (iterations ", opt.iterations, ", coarse_iterations ",
+              opt.coarse_iterations, ", max_points ", opt.max_points, ", inlier_frac ",
+              opt.inlier_frac, ", axis_steps ", opt.axis_steps, ", switch_ratio ",
+              opt.switch_ratio, ", finalists ", opt.finalists, ", model_points ",
+              opt.model_points, ", free_space_frac ", opt.free_space_frac,
+              ", free_space_weight ", opt.free_space_weight, ")");
+    const int64_t n_all = obs_all.rows();
+    for (int64_t i = 0; i < n_all; ++i)
+        G2L_CHECK(obs_all.row(i).allFinite(), "refine_pose: observed point ", i, " is not finite");
+    const int64_t n = std::min<int64_t>(n_all, opt.max_points);
+    Points obs(n, 3);
+    for (int64_t i = 0; i < n; ++i) {
+        obs.row(i) = obs_all.row(i * n_all / n);
+    }
+    G2L_CHECK(!normals || normals->rows() == tree.size(), "refine_pose: ", normals ? normals->rows() : 0,
+              " normals for ", tree.size(), " model points");
+    Icp icp{tree, obs, normals, opt.inlier_frac * info.diameter, {}, {}, {}};
+    const Eigen::Vector3d c = info.min + 0.5 * info.size;
+    const std::vector<Eigen::Matrix3d> T =
+        opt.hypotheses ? turns(opt.axis_steps) : std::vector<Eigen::Matrix3d>{Eigen::Matrix3d::Identity()};
+    G2L_CHECK(!depth || (depth->depth_mm && depth->K.width > 0 && depth->K.height > 0 &&
+                         depth->K.fx > 0 && depth->K.fy > 0),
+              "refine_pose: the depth image needs a buffer, a size and focal lengths");
+    const Points& tp = tree.points();
+    const int64_t nm = std::min<int64_t>(tp.rows(), std::max(1, opt.model_points));
+    Points model_sub(nm, 3);
+    for (int64_t i = 0; i < nm; ++i) model_sub.row(i) = tp.row(i * tp.rows() / nm);
+    const double cap = opt.inlier_frac * info.diameter;
+    auto cost = [&](const Pose& p, double fit, double* viol) {
+        *viol = depth ? free_space_violation(model_sub, p, *depth, opt.free_space_frac * info.diameter)
+                      : 0.0;
+        return fit + opt.free_space_weight * cap * *viol;
+    };
+    struct Hyp { Pose pose; double fit; int index; double viol = 0; };
+    // Each start is independent (its own ICP scratch): OpenMP over starts; the result does not
+    // depend on the thread count.
+    std::vector<Hyp> hyps(T.size());
+#pragma omp parallel for schedule(dynamic, 1) firstprivate(icp)
+    for (int64_t h = 0; h < int64_t(T.size()); ++h) {
+        // init composed with the turn about the box centre: p -> R0 (Rs (p - c) + c) + t0.
+        Hyp& y = hyps[size_t(h)];
+        y.pose.R = init.R * T[size_t(h)];
+        y.pose.t = init.R * (c - T[size_t(h)] * c) + init.t;
+        y.index = int(h);
+        y.fit = cost(y.pose, icp.run(y.pose, opt.coarse_iterations), &y.viol);
+    }
+    // The network's start and the best turned starts get the full iterations.
+    std::vector<Hyp> rest(hyps.begin() + 1, hyps.end());
+    std::stable_sort(rest.begin(), rest.end(), [](const Hyp& a, const Hyp& b) { return a.fit < b.fit; });
+    std::vector<Hyp> final{hyps[0]};
+    for (size_t i = 0; i < std::min<size_t>(size_t(std::max(0, opt.finalists)), rest.size()); ++i) final.push_back(rest[i]);
+#pragma omp parallel for schedule(dynamic, 1) firstprivate(icp)
+    for (int64_t i = 0; i < int64_t(final.size()); ++i) {
+        Hyp& y = final[size_t(i)];
+        y.fit = cost(y.pose, icp.run(y.pose, opt.iterations), &y.viol);
+    }
+    RefineResult r;
+    r.pose = final[0].pose;
+    r.fit_mm = r.start_fit_mm = final[0].fit;
+    r.violation = final[0].viol;
+    r.hypotheses = int(T.size());
+    for (size_t i = 1; i < final.size(); ++i)
+        if (final[i].fit < opt.switch_ratio * final[0].fit && final[i].fit < r.fit_mm) {
+            r.pose = final[i].pose;
+            r.fit_mm = final[i].fit;
+            r.violation = final[i].viol;
+            r.hypothesis = final[i].index;
+        }
+    return r;
+}
+
+}  // namespace g2l::geom

@@ -1,0 +1,69 @@
+// SPDX-License-Identifier: MIT
+// Depth-based pose refinement: ICP of the object's observed depth points against its model
+// surface, started from the network's pose and from that pose turned by the model box's
+// axis-permuting rotations and axis turns (the near-symmetries a depth-only network confuses:
+// a flat box's flips, a mug's handle side, a clamp's jaw side). The turn whose refined pose fits
+// the depth best wins, when it fits clearly better than the network's own. Lengths in mm.
+#pragma once
+
+#include <vector>
+
+#include "geometry/labels.h"
+#include "geometry/types.h"
+
+namespace g2l::geom {
+
+struct RefineOptions {
+    int iterations = 40;       ///< ICP iterations of the network's start and the finalists
+    int coarse_iterations = 10; ///< ICP iterations of every start before they are ranked
+    int finalists = 5;          ///< best turned starts that get the full iterations
+    int max_points = 800;      ///< observed points used (evenly strided)
+    /// Pairs farther apart than inlier_frac * diameter are left out of each Kabsch fit (outliers:
+    /// background points the segmentation kept, the model's far side). Also the cap of the fit.
+    double inlier_frac = 0.1;
+    bool hypotheses = true;    ///< try the turned starts (false: ICP from the network's pose only)
+    int axis_steps = 8;        ///< turns about each box axis at multiples of 360 / axis_steps deg
+    /// A turned start replaces the network's pose only when its fit is below this fraction of
+    /// the network's (refined) fit.
+    double switch_ratio = 0.95;
+    double free_space_frac = 0.05;  ///< see DepthImage
+    int model_points = 500;         ///< model points projected for the free-space test
+    double free_space_weight = 1.0; ///< cost = fit + weight * cap * violating fraction
+};
+
+/// The frame's depth image (row-major, mm; 0 / NaN = no measurement) for the free-space test:
+/// a posed model point that the camera would see in front of the measured surface (depth
+/// farther than the point by more than free_space_frac * diameter) is a violation.
+struct DepthImage {
+    const float* depth_mm = nullptr;
+    Intrinsics K;  ///< with width and height
+};
+
+struct RefineResult {
+    Pose pose;
+    double fit_mm = 0;      ///< mean observed-point distance to the posed model, capped (see above)
+    double start_fit_mm = 0;  ///< the same for the refined network pose (hypothesis 0)
+    double violation = 0;   ///< fraction of projected model points violating free space
+    int hypothesis = 0;     ///< 0 = the network's pose, else the index of the turn that won
+    int hypotheses = 1;     ///< starts tried
+};
+
+/// Mean over `obs` (camera frame) of min(distance to the model posed at `pose`, cap_mm).
+double fit_error(const ModelKdTree& tree, const Points& obs, const Pose& pose, double cap_mm);
+
+/// Point-to-point ICP of `obs` (camera-frame object points) onto the model surface `tree`
+/// (model frame), from `init` — point-to-plane when `normals` (tree.normals(), one row per tree
+/// point) are given, which converges in far fewer steps along flat faces — each start ranked by its fit plus, when `depth` is given, its
+/// free-space violations. Throws g2l::Error if obs has fewer than 3 rows, a point or the
+/// init pose is not finite, or info.diameter is not > 0.
+RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const Points& obs,
+                         const Pose& init, const RefineOptions& opt = {},
+                         const DepthImage* depth = nullptr, const Points* normals = nullptr);
+
+/// Fraction of `model_pts` (model frame) posed at `pose` that project onto a measured pixel of
+/// `depth` and lie in front of the measured surface by more than tol_mm, among those that
+/// project onto a measured pixel and are not behind it by more than tol_mm (0 when none).
+double free_space_violation(const Points& model_pts, const Pose& pose, const DepthImage& depth,
+                            double tol_mm);
+
+}  // namespace g2l::geom

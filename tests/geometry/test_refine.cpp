@@ -1,0 +1,217 @@
+// SPDX-License-Identifier: MIT
+// Depth refinement (geometry/refine.h): ICP recovers a perturbed pose, the turned starts
+// recover a flipped one that ICP alone cannot, the free-space test counts model points in
+// front of the measured surface, and bad input throws naming the value.
+#include <Eigen/Dense>
+#include <Eigen/Geometry>
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <vector>
+
+#include "core/error.h"
+#include "geometry/labels.h"
+#include "geometry/metrics.h"
+#include "geometry/model_info.h"
+#include "geometry/refine.h"
+
+using namespace g2l;
+using namespace g2l::geom;
+using Catch::Matchers::Contains;
+
+namespace {
+
+// The surface of a 120 x 60 x 40 mm box (grid 4 mm) with a 30 mm cube on one corner of its +z
+// face: no rotation maps it onto itself.
+Points bumped_box() {
+    std::vector<Eigen::Vector3f> pts;
+    const Eigen::Vector3f h(60, 30, 20);
+    const float step = 4;
+    for (int axis = 0; axis < 3; ++axis) {
+        const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+        for (float a = -h[u]; a <= h[u] + 1e-3f; a += step)
+            for (float b = -h[v]; b <= h[v] + 1e-3f; b += step)
+                for (float sgn : {-1.f, 1.f}) {
+                    Eigen::Vector3f p;
+                    p[axis] = sgn * h[axis];
+                    p[u] = a;
+                    p[v] = b;
+                    pts.push_back(p);
+                }
+    }
+    for (float a = 0; a <= 30; a += step)
+        for (float b = 0; b <= 30; b += step)
+            for (float c = 0; c <= 30; c += step)
+                pts.push_back(Eigen::Vector3f(h.x() - 30 + a, h.y() - 30 + b, h.z() + c));
+    Points out(Eigen::Index(pts.size()), 3);
+    for (size_t i = 0; i < pts.size(); ++i) out.row(Eigen::Index(i)) = pts[i].transpose();
+    return out;
+}
+
+Points transform(const Points& p, const Pose& pose) {
+    Points out(p.rows(), 3);
+    for (Eigen::Index i = 0; i < p.rows(); ++i)
+        out.row(i) = (pose.R * p.row(i).transpose().cast<double>() + pose.t).cast<float>().transpose();
+    return out;
+}
+
+Pose gt_pose() {
+    Pose g;
+    g.R = (Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitX()) *
+           Eigen::AngleAxisd(-0.7, Eigen::Vector3d::UnitY()))
+              .toRotationMatrix();
+    g.t = Eigen::Vector3d(20, -10, 800);
+    return g;
+}
+
+}  // namespace
+
+TEST_CASE("refine_pose: ICP recovers a pose perturbed by 12 degrees and 15 mm", "[geometry][refine]") {
+    const Points model = bumped_box();
+    const ModelKdTree tree(model);
+    const ModelInfo info = compute_model_info(model);
+    const Pose gt = gt_pose();
+    const Points obs = transform(model, gt);
+    Pose start = gt;
+    start.R = Eigen::AngleAxisd(12 * M_PI / 180, Eigen::Vector3d(1, 2, 3).normalized()) * gt.R;
+    start.t += Eigen::Vector3d(10, -8, 8);
+    REQUIRE(rotation_error_deg(start.R, gt.R) > 11.9);
+    RefineOptions opt;
+    opt.hypotheses = false;
+    const Points normals = tree.normals();
+    const RefineResult r = refine_pose(tree, info, obs, start, opt, nullptr, &normals);
+    // Point-to-point ICP gets the rotation but slides slowly along the flat faces.
+    const RefineResult p2p = refine_pose(tree, info, obs, start, opt);
+    CHECK(rotation_error_deg(p2p.pose.R, gt.R) < 1);
+    CHECK((p2p.pose.t - gt.t).norm() > 1);
+    CHECK(rotation_error_deg(r.pose.R, gt.R) < 0.5);
+    CHECK((r.pose.t - gt.t).norm() < 0.5);
+    CHECK(r.hypothesis == 0);
+    CHECK(r.hypotheses == 1);
+    CHECK(r.fit_mm < 0.5);
+    CHECK(r.fit_mm >= 0);
+}
+
+TEST_CASE("refine_pose: the turned starts recover a box turned over, ICP alone does not",
+          "[geometry][refine]") {
+    const Points model = bumped_box();
+    const ModelKdTree tree(model);
+    const ModelInfo info = compute_model_info(model);
+    const Pose gt = gt_pose();
+    const Points obs = transform(model, gt);
+    // The pose turned 180 degrees about the box's long axis, through its centre.
+    const Eigen::Vector3d c = info.min + 0.5 * info.size;
+    const Eigen::Matrix3d T = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    Pose flipped;
+    flipped.R = gt.R * T;
+    flipped.t = gt.R * (c - T * c) + gt.t;
+    RefineOptions opt;
+    opt.hypotheses = false;
+    const RefineResult alone = refine_pose(tree, info, obs, flipped, opt);
+    CHECK(rotation_error_deg(alone.pose.R, gt.R) > 90);
+    opt.hypotheses = true;
+    const RefineResult turned = refine_pose(tree, info, obs, flipped, opt);
+    CHECK(rotation_error_deg(turned.pose.R, gt.R) < 1);
+    CHECK((turned.pose.t - gt.t).norm() < 1);
+    CHECK(turned.hypothesis > 0);
+    CHECK(turned.hypotheses > 24);
+    CHECK(turned.fit_mm < 0.5 * turned.start_fit_mm);
+    // From the right pose, the network's start is kept.
+    const RefineResult kept = refine_pose(tree, info, obs, gt, opt);
+    CHECK(kept.hypothesis == 0);
+    CHECK(rotation_error_deg(kept.pose.R, gt.R) < 0.5);
+}
+
+TEST_CASE("free_space_violation: model points in front of the measured surface", "[geometry][refine]") {
+    // A flat wall at 1000 mm over a 64 x 64 image, one pixel with no measurement.
+    Intrinsics K;
+    K.fx = K.fy = 100;
+    K.cx = K.cy = 32;
+    K.width = K.height = 64;
+    std::vector<float> depth(64 * 64, 1000.f);
+    const DepthImage di{depth.data(), K};
+    Points pts(3, 3);
+    pts << 0, 0, 0, 10, 0, 0, 0, 10, 0;
+    Pose p;
+    p.t = Eigen::Vector3d(0, 0, 900);   // 100 mm in front of the wall: all violate
+    CHECK(free_space_violation(pts, p, di, 10) == Approx(1.0));
+    p.t.z() = 1005;                     // on the wall (within 10 mm): none
+    CHECK(free_space_violation(pts, p, di, 10) == Approx(0.0));
+    p.t.z() = 1200;                     // behind the wall (hidden): none seen, 0
+    CHECK(free_space_violation(pts, p, di, 10) == Approx(0.0));
+    depth[32 * 64 + 32] = 0.f;          // the first point's pixel has no depth: not counted
+    p.t.z() = 900;
+    CHECK(free_space_violation(pts, p, di, 10) == Approx(1.0));
+    p.t = Eigen::Vector3d(0, 0, -500);  // behind the camera: nothing seen
+    CHECK(free_space_violation(pts, p, di, 10) == Approx(0.0));
+
+    // In refine_pose, the penalty raises the cost of a pose floating in front of the wall.
+    const Points model = bumped_box();
+    const ModelKdTree tree(model);
+    const ModelInfo info = compute_model_info(model);
+    std::vector<float> far(64 * 64, 5000.f);
+    const DepthImage wall{far.data(), K};
+    Pose gt;
+    gt.t = Eigen::Vector3d(0, 0, 800);
+    const Points obs = transform(model, gt);
+    RefineOptions opt;
+    opt.hypotheses = false;
+    const RefineResult plain = refine_pose(tree, info, obs, gt, opt);
+    const RefineResult walled = refine_pose(tree, info, obs, gt, opt, &wall);
+    CHECK(plain.violation == 0);
+    CHECK(walled.violation > 0.5);
+    CHECK(walled.fit_mm > plain.fit_mm + 0.5 * opt.inlier_frac * info.diameter);
+}
+
+TEST_CASE("refine_pose: bad input throws naming the value", "[geometry][refine]") {
+    const Points model = bumped_box();
+    const ModelKdTree tree(model);
+    const ModelInfo info = compute_model_info(model);
+    const Pose gt = gt_pose();
+    Points obs = transform(model, gt);
+    CHECK_THROWS_WITH(refine_pose(tree, info, obs.topRows(2), gt), Contains("at least 3 observed points, got 2"));
+    Points bad = obs;
+    bad(5, 1) = std::nanf("");
+    CHECK_THROWS_WITH(refine_pose(tree, info, bad, gt), Contains("is not finite"));
+    Pose nan_pose = gt;
+    nan_pose.t.x() = std::nan("");
+    CHECK_THROWS_WITH(refine_pose(tree, info, obs, nan_pose), Contains("initial pose is not finite"));
+    ModelInfo no_diam = info;
+    no_diam.diameter = 0;
+    CHECK_THROWS_WITH(refine_pose(tree, no_diam, obs, gt), Contains("diameter must be > 0, got 0"));
+    RefineOptions opt;
+    opt.max_points = 2;
+    CHECK_THROWS_WITH(refine_pose(tree, info, obs, gt, opt), Contains("max_points 2"));
+    opt = {};
+    opt.switch_ratio = 0;
+    CHECK_THROWS_WITH(refine_pose(tree, info, obs, gt, opt), Contains("switch_ratio 0"));
+    const DepthImage empty{};
+    CHECK_THROWS_WITH(refine_pose(tree, info, obs, gt, {}, &empty), Contains("depth image"));
+}
+
+TEST_CASE("ModelKdTree: knn nearest first, normals of a box's faces", "[geometry][refine]") {
+    const Points model = bumped_box();
+    const ModelKdTree tree(model);
+    int idx[5];
+    float d2[5];
+    const Eigen::Vector3f q(0.5f, 0.3f, 20.f);  // near the middle of the +z face
+    REQUIRE(tree.knn(q, 5, idx, d2) == 5);
+    for (int j = 1; j < 5; ++j) CHECK(d2[j] >= d2[j - 1]);
+    int nearest = -1;
+    CHECK(std::sqrt(d2[0]) == Approx(tree.nearest(q, &nearest)));
+    CHECK(idx[0] == nearest);
+    const Points n = tree.normals();
+    REQUIRE(n.rows() == model.rows());
+    // A point in the middle of the +z face: normal along z; of the +x face: along x.
+    CHECK(std::abs(n(nearest, 2)) == Approx(1.0).margin(1e-3));
+    tree.nearest(Eigen::Vector3f(60.f, 1.f, 2.f), &nearest);
+    CHECK(std::abs(n(nearest, 0)) == Approx(1.0).margin(1e-3));
+    for (Eigen::Index i = 0; i < n.rows(); i += 97) CHECK(n.row(i).norm() == Approx(1.0).margin(1e-4));
+    CHECK_THROWS_WITH(tree.knn(q, 0, idx, d2), Contains("k must be >= 1, got 0"));
+    CHECK_THROWS_WITH(tree.normals(2), Contains("k must be >= 3, got 2"));
+    // Normals that do not match the tree are refused.
+    RefineOptions opt;
+    const Points short_n = n.topRows(10);
+    CHECK_THROWS_WITH(refine_pose(tree, compute_model_info(model), transform(model, gt_pose()),
+                                  gt_pose(), opt, nullptr, &short_n),
+                      Contains("10 normals for"));
+}

@@ -13,6 +13,7 @@
 #include "geometry/metrics.h"
 #include "geometry/model_info.h"
 #include "geometry/refine.h"
+#include "geom_test_util.h"
 
 using namespace g2l;
 using namespace g2l::geom;
@@ -20,32 +21,9 @@ using Catch::Matchers::Contains;
 
 namespace {
 
-// The surface of a 120 x 60 x 40 mm box (grid 4 mm) with a 30 mm cube on one corner of its +z
-// face: no rotation maps it onto itself.
-Points bumped_box() {
-    std::vector<Eigen::Vector3f> pts;
-    const Eigen::Vector3f h(60, 30, 20);
-    const float step = 4;
-    for (int axis = 0; axis < 3; ++axis) {
-        const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-        for (float a = -h[u]; a <= h[u] + 1e-3f; a += step)
-            for (float b = -h[v]; b <= h[v] + 1e-3f; b += step)
-                for (float sgn : {-1.f, 1.f}) {
-                    Eigen::Vector3f p;
-                    p[axis] = sgn * h[axis];
-                    p[u] = a;
-                    p[v] = b;
-                    pts.push_back(p);
-                }
-    }
-    for (float a = 0; a <= 30; a += step)
-        for (float b = 0; b <= 30; b += step)
-            for (float c = 0; c <= 30; c += step)
-                pts.push_back(Eigen::Vector3f(h.x() - 30 + a, h.y() - 30 + b, h.z() + c));
-    Points out(Eigen::Index(pts.size()), 3);
-    for (size_t i = 0; i < pts.size(); ++i) out.row(Eigen::Index(i)) = pts[i].transpose();
-    return out;
-}
+// A 120 x 60 x 40 mm box (grid 4 mm) with a 30 mm cube on one corner of its +z face: no
+// rotation maps it onto itself.
+Points bumped_box() { return test::box_surface(120, 60, 40, 4, Eigen::Vector3f::Zero(), 30); }
 
 Points transform(const Points& p, const Pose& pose) {
     Points out(p.rows(), 3);

@@ -11,6 +11,7 @@
 #include "geometry/labels.h"
 #include "geometry/metrics.h"
 #include "geometry/symmetry.h"
+#include "geom_test_util.h"
 
 using namespace g2l;
 using namespace g2l::geom;
@@ -19,31 +20,9 @@ namespace {
 
 const Eigen::Vector3f kCentre(10.f, -5.f, 3.f);  // off the origin: rotations are about the box centre
 
-// Points on the surface of an axis-aligned box of size (sx, sy, sz) centred at kCentre (grid
-// `step` mm), plus, if `bump`, a solid 24 mm cube of points on the +z face at one corner.
+// The box of geom_test_util.h centred at kCentre, with a 24 mm bump if `bump`.
 Points box_surface(float sx, float sy, float sz, float step, bool bump = false) {
-    std::vector<Eigen::Vector3f> pts;
-    const Eigen::Vector3f h(sx / 2, sy / 2, sz / 2);
-    for (int axis = 0; axis < 3; ++axis) {
-        const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-        for (float a = -h[u]; a <= h[u] + 1e-3f; a += step)
-            for (float b = -h[v]; b <= h[v] + 1e-3f; b += step)
-                for (float sgn : {-1.f, 1.f}) {
-                    Eigen::Vector3f p;
-                    p[axis] = sgn * h[axis];
-                    p[u] = a;
-                    p[v] = b;
-                    pts.push_back(p + kCentre);
-                }
-    }
-    if (bump)
-        for (float a = 0; a <= 24; a += step)
-            for (float b = 0; b <= 24; b += step)
-                for (float c = 0; c <= 24; c += step)
-                    pts.push_back(kCentre + Eigen::Vector3f(h.x() - 24 + a, h.y() - 24 + b, h.z() + c));
-    Points out(Eigen::Index(pts.size()), 3);
-    for (size_t i = 0; i < pts.size(); ++i) out.row(Eigen::Index(i)) = pts[i].transpose();
-    return out;
+    return test::box_surface(sx, sy, sz, step, kCentre, bump ? 24.f : 0.f);
 }
 
 // A closed cylinder around z through kCentre: radius r, height hgt, 72 points per ring.

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "geometry/refine.h"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -116,6 +117,71 @@ struct Icp {
 
 }  // namespace
 
+bool fit_plane(const DepthImage& dimg, int x0, int y0, int x1, int y1, double tol_mm, Plane* out,
+               int max_samples, int iterations) {
+    G2L_CHECK(dimg.depth_mm && dimg.K.width > 0 && dimg.K.height > 0 && dimg.K.fx > 0 &&
+                  dimg.K.fy > 0,
+              "fit_plane: the depth image needs a buffer, a size and focal lengths");
+    G2L_CHECK(tol_mm > 0 && max_samples >= 3 && iterations >= 1, "fit_plane: invalid options (tol_mm ",
+              tol_mm, ", max_samples ", max_samples, ", iterations ", iterations, ")");
+    const Intrinsics& K = dimg.K;
+    x0 = std::max(0, x0); y0 = std::max(0, y0);
+    x1 = std::min(K.width, x1); y1 = std::min(K.height, y1);
+    if (x1 <= x0 || y1 <= y0) return false;
+    const double step = std::max(1.0, std::sqrt(double(x1 - x0) * double(y1 - y0) / max_samples));
+    std::vector<Eigen::Vector3d> P;
+    for (double v = y0 + 0.5 * step; v < y1; v += step)
+        for (double u = x0 + 0.5 * step; u < x1; u += step) {
+            const int iu = int(u), iv = int(v);
+            const float z = dimg.depth_mm[int64_t(iv) * K.width + iu];
+            if (!(z > 0.f) || !std::isfinite(z)) continue;
+            P.emplace_back((iu - K.cx) * z / K.fx, (iv - K.cy) * z / K.fy, z);
+        }
+    const int64_t n = int64_t(P.size());
+    if (n < 3) return false;
+    uint64_t state = 0x9E3779B97F4A7C15ULL;
+    auto draw = [&]() {
+        state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+        return int64_t((state >> 33) % uint64_t(n));
+    };
+    Eigen::Vector3d best_n = Eigen::Vector3d::Zero();
+    double best_d = 0;
+    int64_t best_count = -1;
+    for (int it = 0; it < iterations; ++it) {
+        const Eigen::Vector3d& a = P[size_t(draw())];
+        const Eigen::Vector3d& b = P[size_t(draw())];
+        const Eigen::Vector3d& c = P[size_t(draw())];
+        Eigen::Vector3d nrm = (b - a).cross(c - a);
+        if (nrm.norm() < 1e-6) continue;
+        nrm.normalize();
+        const double d = -nrm.dot(a);
+        int64_t count = 0;
+        for (const auto& p : P) count += std::abs(nrm.dot(p) + d) <= tol_mm;
+        if (count > best_count) { best_count = count; best_n = nrm; best_d = d; }
+    }
+    if (best_count < 3) return false;
+    // Least-squares refit to the inliers: the normal is the direction of least spread.
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    std::vector<Eigen::Vector3d> in;
+    for (const auto& p : P)
+        if (std::abs(best_n.dot(p) + best_d) <= tol_mm) in.push_back(p);
+    for (const auto& p : in) mean += p;
+    mean /= double(in.size());
+    Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+    for (const auto& p : in) C += (p - mean) * (p - mean).transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(C);
+    Eigen::Vector3d nrm = eig.eigenvectors().col(0).normalized();
+    if (nrm.dot(best_n) < 0) nrm = -nrm;
+    double d = -nrm.dot(mean);
+    if (d < 0) { nrm = -nrm; d = -d; }
+    int64_t count = 0;
+    for (const auto& p : P) count += std::abs(nrm.dot(p) + d) <= tol_mm;
+    out->n = nrm;
+    out->d = d;
+    out->inlier_frac = double(count) / double(n);
+    return true;
+}
+
 double fit_error(const ModelKdTree& tree, const Points& obs, const Pose& pose, double cap_mm) {
     if (obs.rows() == 0) return cap_mm;
     const Eigen::Matrix3f Rt = pose.R.transpose().cast<float>();
@@ -170,6 +236,37 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
     const int64_t n_all = obs_all.rows();
     for (int64_t i = 0; i < n_all; ++i)
         G2L_CHECK(obs_all.row(i).allFinite(), "refine_pose: observed point ", i, " is not finite");
+    G2L_CHECK(!depth || (depth->depth_mm && depth->K.width > 0 && depth->K.height > 0 &&
+                         depth->K.fx > 0 && depth->K.fy > 0),
+              "refine_pose: the depth image needs a buffer, a size and focal lengths");
+    G2L_CHECK(!opt.support_plane || (opt.plane_tol_mm > 0 && opt.plane_depth_mm >= 0 &&
+                                     opt.plane_region >= 0 && opt.plane_min_inliers >= 0 &&
+                                     opt.plane_min_inliers <= 1),
+              "refine_pose: invalid support-plane options (plane_tol_mm ", opt.plane_tol_mm,
+              ", plane_depth_mm ", opt.plane_depth_mm, ", plane_region ", opt.plane_region,
+              ", plane_min_inliers ", opt.plane_min_inliers, ")");
+    RefineResult r;
+    // The support plane, found around the observed points' image box.
+    Plane plane;
+    if (depth && opt.support_plane) {
+        const Intrinsics& K = depth->K;
+        double u0 = 1e300, v0 = 1e300, u1 = -1e300, v1 = -1e300;
+        for (int64_t i = 0; i < n_all; ++i) {
+            const double z = obs_all(i, 2);
+            if (!(z > 1.0)) continue;
+            const double u = K.fx * obs_all(i, 0) / z + K.cx, v = K.fy * obs_all(i, 1) / z + K.cy;
+            u0 = std::min(u0, u); u1 = std::max(u1, u);
+            v0 = std::min(v0, v); v1 = std::max(v1, v);
+        }
+        const double gu = opt.plane_region * (u1 - u0), gv = opt.plane_region * (v1 - v0);
+        if (u1 >= u0 &&
+            fit_plane(*depth, int(std::floor(u0 - gu)), int(std::floor(v0 - gv)),
+                      int(std::ceil(u1 + gu)) + 1, int(std::ceil(v1 + gv)) + 1, opt.plane_tol_mm,
+                      &plane) &&
+            plane.inlier_frac >= opt.plane_min_inliers) {
+            r.plane = true;
+        }
+    }
     const int64_t n = std::min<int64_t>(n_all, opt.max_points);
     Points obs(n, 3);
     for (int64_t i = 0; i < n; ++i) {
@@ -181,9 +278,6 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
     const Eigen::Vector3d c = info.min + 0.5 * info.size;
     const std::vector<Eigen::Matrix3d> T =
         opt.hypotheses ? turns(opt.axis_steps) : std::vector<Eigen::Matrix3d>{Eigen::Matrix3d::Identity()};
-    G2L_CHECK(!depth || (depth->depth_mm && depth->K.width > 0 && depth->K.height > 0 &&
-                         depth->K.fx > 0 && depth->K.fy > 0),
-              "refine_pose: the depth image needs a buffer, a size and focal lengths");
     const Points& tp = tree.points();
     const int64_t nm = std::min<int64_t>(tp.rows(), std::max(1, opt.model_points));
     Points model_sub(nm, 3);
@@ -192,6 +286,14 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
     auto cost = [&](const Pose& p, double fit, double* viol) {
         *viol = depth ? free_space_violation(model_sub, p, *depth, opt.free_space_frac * info.diameter)
                       : 0.0;
+        if (r.plane) {  // model points beneath the support plane
+            const Eigen::Vector3d pn = p.R.transpose() * plane.n;
+            const double pd = plane.n.dot(p.t) + plane.d;
+            int64_t under = 0;
+            for (int64_t i = 0; i < nm; ++i)
+                under += pn.dot(model_sub.row(i).transpose().cast<double>()) + pd < -opt.plane_depth_mm;
+            *viol += double(under) / double(nm);
+        }
         return fit + opt.free_space_weight * cap * *viol;
     };
     struct Hyp { Pose pose; double fit; int index; double viol = 0; };
@@ -217,7 +319,6 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
         Hyp& y = final[size_t(i)];
         y.fit = cost(y.pose, icp.run(y.pose, opt.iterations), &y.viol);
     }
-    RefineResult r;
     r.pose = final[0].pose;
     r.fit_mm = r.start_fit_mm = final[0].fit;
     r.violation = final[0].viol;

@@ -29,6 +29,26 @@ struct RefineOptions {
     double free_space_frac = 0.05;  ///< see DepthImage
     int model_points = 500;         ///< model points projected for the free-space test
     double free_space_weight = 1.0; ///< cost = fit + weight * cap * violating fraction
+    /// Support plane (needs the depth image): the dominant plane of the depth pixels around the
+    /// object (its observed points' image box grown by plane_region box sizes on each side, so
+    /// the object covers a small part of it), found by RANSAC, is taken as the surface the
+    /// object stands on when it holds at least plane_min_inliers of those pixels; a pose whose
+    /// posed model points lie more than plane_depth_mm beneath it (inside the table) pays for
+    /// them like free-space violations (their fraction is added to the violating fraction).
+    /// The plane's points are not removed from the observed points: a thin object's sides lie
+    /// within millimetres of it (docs/experiments.md).
+    bool support_plane = true;
+    double plane_tol_mm = 4.0;      ///< RANSAC inlier distance
+    double plane_depth_mm = 8.0;
+    double plane_region = 1.0;
+    double plane_min_inliers = 0.4;
+};
+
+/// A plane n . p + d = 0 in the camera frame (unit n, the camera on its positive side, d > 0).
+struct Plane {
+    Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+    double d = 0;
+    double inlier_frac = 0;  ///< share of the sampled pixels within the RANSAC tolerance
 };
 
 /// The frame's depth image (row-major, mm; 0 / NaN = no measurement) for the free-space test:
@@ -43,10 +63,21 @@ struct RefineResult {
     Pose pose;
     double fit_mm = 0;      ///< mean observed-point distance to the posed model, capped (see above)
     double start_fit_mm = 0;  ///< the same for the refined network pose (hypothesis 0)
-    double violation = 0;   ///< fraction of projected model points violating free space
+    /// fraction of projected model points violating free space, plus the fraction beneath the
+    /// support plane when one was found
+    double violation = 0;
     int hypothesis = 0;     ///< 0 = the network's pose, else the index of the turn that won
     int hypotheses = 1;     ///< starts tried
+    bool plane = false;     ///< a support plane was found and used
 };
+
+/// The dominant plane of the measured pixels of `depth` in the image box [x0, x1) x [y0, y1)
+/// (clipped to the image): at most max_samples pixels on an even grid are back-projected and
+/// `iterations` deterministic RANSAC draws keep the plane with the most points within tol_mm,
+/// refitted to them by least squares. Returns false when fewer than 3 pixels are measured or no
+/// draw spans a plane. Deterministic.
+bool fit_plane(const DepthImage& depth, int x0, int y0, int x1, int y1, double tol_mm, Plane* out,
+               int max_samples = 3000, int iterations = 200);
 
 /// Mean over `obs` (camera frame) of min(distance to the model posed at `pose`, cap_mm).
 double fit_error(const ModelKdTree& tree, const Points& obs, const Pose& pose, double cap_mm);

@@ -1,9 +1,11 @@
 // SPDX-License-Identifier: MIT
 #include "geometry/symmetry.h"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <cmath>
 #include <algorithm>
+#include <limits>
 
 #include "core/error.h"
 #include "geometry/metrics.h"
@@ -33,6 +35,69 @@ bool same(const Eigen::Matrix3f& a, const Eigen::Matrix3f& b) {
 }
 
 }  // namespace
+
+ModelFrame model_frame(const Points& pts, double min_gain) {
+    G2L_CHECK(pts.rows() >= 4, "model_frame: need at least 4 points, got ", pts.rows());
+    G2L_CHECK(pts.allFinite(), "model_frame: a model point is not finite");
+    G2L_CHECK(std::isfinite(min_gain) && min_gain >= 0 && min_gain < 1,
+              "model_frame: min_gain must be in [0, 1), got ", min_gain);
+    const Eigen::MatrixXd P = pts.cast<double>();
+    const int64_t n = P.rows();
+    ModelFrame aligned;
+    const Eigen::Vector3d lo = P.colwise().minCoeff(), hi = P.colwise().maxCoeff();
+    aligned.centre = (0.5 * (lo + hi)).cast<float>();
+    aligned.size = (hi - lo).cast<float>();
+    const double vol_aligned = (hi - lo).prod();
+    const Eigen::RowVector3d mean = P.colwise().mean();
+    const Eigen::MatrixXd C = P.rowwise() - mean;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(C.transpose() * C / double(n));
+    double best_vol = vol_aligned;
+    Eigen::Matrix3d best_axes = Eigen::Matrix3d::Identity();
+    for (int k = 0; k < 3; ++k) {
+        // The box along principal axis a: turn the cross-section axes (u, v) about a to the
+        // least-area rectangle (a rectangle's area is 90-degree periodic in the turn).
+        const Eigen::Vector3d a = eig.eigenvectors().col(k).normalized();
+        const Eigen::Vector3d u0 = eig.eigenvectors().col((k + 1) % 3).normalized();
+        const Eigen::Vector3d v0 = a.cross(u0);
+        const Eigen::VectorXd pu = P * u0, pv = P * v0, pa = P * a;
+        const double len = pa.maxCoeff() - pa.minCoeff();
+        double best_area = std::numeric_limits<double>::infinity(), best_th = 0;
+        for (int step = 0; step < 180; ++step) {
+            const double th = step * 0.5 * kPi / 180.0, c = std::cos(th), s = std::sin(th);
+            double ulo = 1e300, uhi = -1e300, vlo = 1e300, vhi = -1e300;
+            for (int64_t i = 0; i < n; ++i) {
+                const double x = c * pu[i] + s * pv[i], y = -s * pu[i] + c * pv[i];
+                ulo = std::min(ulo, x); uhi = std::max(uhi, x);
+                vlo = std::min(vlo, y); vhi = std::max(vhi, y);
+            }
+            const double area = (uhi - ulo) * (vhi - vlo);
+            if (area < best_area) { best_area = area; best_th = th; }
+        }
+        if (best_area * len < best_vol) {
+            best_vol = best_area * len;
+            const double c = std::cos(best_th), s = std::sin(best_th);
+            best_axes.col(0) = c * u0 + s * v0;
+            best_axes.col(1) = -s * u0 + c * v0;
+            best_axes.col(2) = a;  // u x v = a: right-handed
+        }
+    }
+    if (!(best_vol < (1.0 - min_gain) * vol_aligned)) return aligned;
+    // Each box axis is signed to point along the model axis it is nearest (a stable choice).
+    for (int j = 0; j < 3; ++j) {
+        int m = 0;
+        best_axes.col(j).cwiseAbs().maxCoeff(&m);
+        if (best_axes(m, j) < 0) best_axes.col(j) *= -1.0;
+    }
+    if (best_axes.determinant() < 0) best_axes.col(2) *= -1.0;
+    const Eigen::MatrixXd Q = P * best_axes;  // box coordinates
+    const Eigen::Vector3d qlo = Q.colwise().minCoeff(), qhi = Q.colwise().maxCoeff();
+    ModelFrame f;
+    f.axes = best_axes.cast<float>();
+    f.centre = (best_axes * (0.5 * (qlo + qhi))).cast<float>();
+    f.size = (qhi - qlo).cast<float>();
+    f.aligned = false;
+    return f;
+}
 
 SymmetryScore symmetry_score(const ModelKdTree& tree, const SymmetryTransform& s,
                              int max_points) {
@@ -79,7 +144,13 @@ std::vector<SymmetryTransform> geometric_symmetries(const ModelKdTree& tree, con
             for (const auto& c : candidates) dup = dup || same(c, R);
             if (!dup) candidates.push_back(R);
         }
-    const Eigen::Vector3f c = (info.min + 0.5 * info.size).cast<float>();
+    // Candidates are turns of the object's own box: F Rc F^T about its centre.
+    const ModelFrame frame = model_frame(tree.points());
+    const Eigen::Matrix3f F = frame.axes;
+    const Eigen::Vector3f c =
+        frame.aligned ? Eigen::Vector3f((info.min + 0.5 * info.size).cast<float>()) : frame.centre;
+    if (!frame.aligned)
+        for (auto& R : candidates) R = F * R * F.transpose();
     const double tol = opt.tolerance_frac * info.diameter;
     std::vector<SymmetryTransform> out(1);  // identity
     for (size_t i = 1; i < candidates.size(); ++i) {

@@ -39,9 +39,27 @@ struct SymmetryOptions {
     int max_points = 2000;
 };
 
+/// The object's own box: a mesh need not be modelled with its faces along the model axes (the
+/// YCB-Video pudding box and wood block are turned ~20-30 degrees about z in their model frames,
+/// so the axis-aligned box of `info` is not theirs and its flips are not their symmetries).
+struct ModelFrame {
+    Eigen::Matrix3f axes = Eigen::Matrix3f::Identity();  ///< box axes (columns), model coordinates
+    Eigen::Vector3f centre = Eigen::Vector3f::Zero();    ///< box centre, model coordinates
+    Eigen::Vector3f size = Eigen::Vector3f::Zero();      ///< box extent along each axis (mm)
+    bool aligned = true;                                 ///< axes are the model axes
+};
+
+/// The smallest-volume box among the axis-aligned one and, for each principal axis of `pts`
+/// (PCA), the box along that axis whose cross-section has the least area (a search over the
+/// turn about the axis in 0.5-degree steps). The axis-aligned box is kept unless the other is
+/// smaller by more than `min_gain` of its volume (a modelled-aligned object stays as modelled).
+/// Throws g2l::Error if pts has fewer than 4 rows or a non-finite coordinate.
+ModelFrame model_frame(const Points& pts, double min_gain = 0.03);
+
 /// The symmetries of the model whose surface `tree` holds (ModelKdTree::from_mesh), about the
-/// centre of its bounding box `info`: the identity first, then every accepted candidate among the
-/// 24 axis-permuting rotations of the box and the rotations about each box axis (duplicates
+/// centre of its box (model_frame of the tree's points; the axis-aligned box of `info` when the
+/// model is modelled along its axes): the identity first, then every accepted candidate among
+/// the 24 axis-permuting rotations of the box and the rotations about each box axis (duplicates
 /// removed). Throws g2l::Error if info.diameter is not > 0 or an option is out of range.
 std::vector<SymmetryTransform> geometric_symmetries(const ModelKdTree& tree, const ModelInfo& info,
                                                     const SymmetryOptions& opt = {});

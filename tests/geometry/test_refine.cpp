@@ -193,3 +193,105 @@ TEST_CASE("ModelKdTree: knn nearest first, normals of a box's faces", "[geometry
                                   gt_pose(), opt, nullptr, &short_n),
                       Contains("10 normals for"));
 }
+
+namespace {
+
+// A 200 x 200 image (f = 200) of a table at 1000 mm facing the camera, with the model posed at
+// `pose` z-buffered over it (4 mm model grid: no gaps at this distance).
+std::vector<float> table_with(const Points& posed, const Intrinsics& K) {
+    std::vector<float> depth(size_t(K.width * K.height), 1000.f);
+    for (Eigen::Index i = 0; i < posed.rows(); ++i) {
+        const float z = posed(i, 2);
+        const int u = int(std::lround(K.fx * posed(i, 0) / z + K.cx));
+        const int v = int(std::lround(K.fy * posed(i, 1) / z + K.cy));
+        if (u < 0 || v < 0 || u >= K.width || v >= K.height) continue;
+        float& d = depth[size_t(v * K.width + u)];
+        d = std::min(d, z);
+    }
+    return depth;
+}
+
+Intrinsics table_camera() {
+    Intrinsics K;
+    K.fx = K.fy = 200;
+    K.cx = K.cy = 100;
+    K.width = K.height = 200;
+    return K;
+}
+
+}  // namespace
+
+TEST_CASE("fit_plane: the table around an object, deterministic; no depth, bad options",
+          "[geometry][refine]") {
+    // A tilted table: n . p + d = 0 with n = (0, -0.6, -0.8), d = 900 (camera on the + side),
+    // a 40 x 40 px block 60 mm nearer in the middle and a band of missing pixels.
+    const Intrinsics K = table_camera();
+    const Eigen::Vector3d n(0, -0.6, -0.8);
+    std::vector<float> depth(size_t(K.width * K.height));
+    for (int v = 0; v < K.height; ++v)
+        for (int u = 0; u < K.width; ++u) {
+            const Eigen::Vector3d ray((u - K.cx) / K.fx, (v - K.cy) / K.fy, 1.0);
+            float z = float(-900.0 / n.dot(ray));
+            if (std::abs(u - 100) < 20 && std::abs(v - 100) < 20) z -= 60.f;
+            if (v >= 10 && v < 20) z = 0.f;
+            depth[size_t(v * K.width + u)] = z;
+        }
+    const DepthImage di{depth.data(), K};
+    Plane p;
+    REQUIRE(fit_plane(di, 0, 0, K.width, K.height, 4.0, &p));
+    CHECK(p.n.dot(n) > 0.9999);
+    CHECK(p.d == Approx(900).margin(1.0));
+    CHECK(p.inlier_frac == Approx(1.0 - 1600.0 / 38000.0).margin(0.02));  // all but the block
+    Plane q;
+    REQUIRE(fit_plane(di, 0, 0, K.width, K.height, 4.0, &q));
+    CHECK(q.n == p.n);  // deterministic
+    CHECK(q.d == p.d);
+    // Only the block (a region inside it): the block's face is the plane, all inliers.
+    REQUIRE(fit_plane(di, 85, 85, 115, 115, 4.0, &q));
+    CHECK(q.inlier_frac == Approx(1.0));
+    CHECK(q.d < 900 - 30);  // the block's face: nearer the camera than the table
+    // No measured pixel / a region outside the image: no plane.
+    std::vector<float> none(size_t(K.width * K.height), 0.f);
+    CHECK_FALSE(fit_plane(DepthImage{none.data(), K}, 0, 0, K.width, K.height, 4.0, &q));
+    CHECK_FALSE(fit_plane(di, 300, 300, 400, 400, 4.0, &q));
+    CHECK_THROWS_WITH(fit_plane(di, 0, 0, 10, 10, 0.0, &q), Contains("tol_mm 0"));
+    CHECK_THROWS_WITH(fit_plane(DepthImage{}, 0, 0, 10, 10, 4.0, &q), Contains("depth image"));
+}
+
+TEST_CASE("refine_pose: a pose sunk into the support plane pays for it; without the plane it "
+          "does not", "[geometry][refine]") {
+    // The bumped box with its bump towards the camera, resting on a table at 1000 mm.
+    const Points model = bumped_box();
+    const ModelKdTree tree(model);
+    const ModelInfo info = compute_model_info(model);
+    Pose gt;
+    gt.R = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    gt.t = Eigen::Vector3d(0, 0, 980);  // the box's far face (model -z... now +z) at 1000 mm
+    const Intrinsics K = table_camera();
+    const Points obs = transform(model, gt);
+    const std::vector<float> depth = table_with(obs, K);
+    const DepthImage di{depth.data(), K};
+    RefineOptions opt;
+    opt.hypotheses = false;
+    opt.iterations = opt.coarse_iterations = 0;  // score the starts as they are
+    const RefineResult on = refine_pose(tree, info, obs, gt, opt, &di);
+    CHECK(on.plane);
+    CHECK(on.violation < 0.02);
+    Pose sunk = gt;
+    sunk.t.z() += 30;  // 30 mm into the table: the far 22 mm of the box's 40 are beneath it
+    const RefineResult in = refine_pose(tree, info, obs, sunk, opt, &di);
+    CHECK(in.plane);
+    CHECK(in.violation > 0.25);
+    CHECK(in.fit_mm > on.fit_mm + 0.25 * opt.inlier_frac * info.diameter);
+    opt.support_plane = false;  // hidden behind the table, the sunk points break no free space
+    const RefineResult off = refine_pose(tree, info, obs, sunk, opt, &di);
+    CHECK_FALSE(off.plane);
+    CHECK(off.violation < 0.02);
+    // A plane holding too few of the pixels is not taken as the support.
+    opt = {};
+    opt.hypotheses = false;
+    opt.plane_min_inliers = 1.0;
+    CHECK_FALSE(refine_pose(tree, info, obs, gt, opt, &di).plane);
+    opt.plane_tol_mm = 0;
+    CHECK_THROWS_WITH(refine_pose(tree, info, obs, gt, opt, &di), Contains("plane_tol_mm 0"));
+}

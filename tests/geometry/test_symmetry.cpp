@@ -4,6 +4,7 @@
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
 #include <catch2/catch.hpp>
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -112,6 +113,50 @@ TEST_CASE("symmetries: a bump on one face breaks every symmetry of the box",
     const auto syms = geometric_symmetries(tree, info_of(box_surface(40, 60, 100, 2)));
     REQUIRE(syms.size() == 1);
     CHECK(syms[0].R.isIdentity(1e-6f));
+}
+
+TEST_CASE("model_frame: a box modelled turned about z gets its own axes and its three flips",
+          "[geometry][symmetry]") {
+    // The YCB-Video pudding box, gelatin box and wood block are modelled turned ~15-30 degrees
+    // about z: the axis-aligned box is not theirs, and its x / y flips are not their symmetries.
+    const Points straight = box_surface(40, 60, 100, 2);
+    const Eigen::Matrix3f Rm = Eigen::AngleAxisf(0.44f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
+    const Points turned = (straight * Rm.transpose()).eval();  // each row p -> Rm p
+    const ModelFrame f = model_frame(turned);
+    CHECK_FALSE(f.aligned);
+    CHECK((f.centre - Rm * kCentre).norm() < 1.f);
+    CHECK(f.axes.determinant() == Approx(1.0).margin(1e-4));
+    for (int j = 0; j < 3; ++j) {
+        // Each frame axis is one of the box's own axes (the columns of Rm), its extent that side.
+        int k = 0;
+        const float dot = (Rm.transpose() * f.axes.col(j)).cwiseAbs().maxCoeff(&k);
+        CHECK(dot > 0.9995f);
+        CHECK(f.size[j] == Approx(std::array<float, 3>{40, 60, 100}[size_t(k)]).margin(1.0));
+    }
+    // The axis-aligned box stays as modelled.
+    const ModelFrame a = model_frame(straight);
+    CHECK(a.aligned);
+    CHECK(a.axes.isIdentity(1e-6f));
+    CHECK((a.centre - kCentre).norm() < 1e-3f);
+    CHECK((a.size - Eigen::Vector3f(40, 60, 100)).norm() < 1e-3f);
+
+    // The turned box has its three flips about its own axes (only the z flip before).
+    const ModelKdTree tree(turned);
+    const auto syms = geometric_symmetries(tree, info_of(turned));
+    REQUIRE(syms.size() == 4);
+    for (size_t i = 1; i < syms.size(); ++i) {
+        const Eigen::AngleAxisf aa(syms[i].R);
+        CHECK(aa.angle() == Approx(M_PI).margin(1e-3));
+        CHECK((Rm.transpose() * aa.axis()).cwiseAbs().maxCoeff() > 0.9995f);
+        CHECK((syms[i].R * (Rm * kCentre) + syms[i].t - Rm * kCentre).norm() < 1.f);
+        CHECK(symmetry_score(tree, syms[i]).error_mm < 1.0);
+    }
+
+    CHECK_THROWS_WITH(model_frame(turned.topRows(3)), Catch::Contains("at least 4 points, got 3"));
+    Points bad = turned;
+    bad(5, 1) = std::nanf("");
+    CHECK_THROWS_WITH(model_frame(bad), Catch::Contains("not finite"));
+    CHECK_THROWS_WITH(model_frame(turned, 1.0), Catch::Contains("min_gain") && Catch::Contains("1"));
 }
 
 TEST_CASE("symmetries: score of a flip, bad diameters and options throw naming the value",

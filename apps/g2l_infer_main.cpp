@@ -79,6 +79,10 @@ int main(int argc, char** argv) {
     app.add_option("--detector", detector_path,
                    "a 2D detector export (<run_dir>/detector.g2l of a \"task\": \"detector\" "
                    "training): finds the boxes on the --rgb image instead of --boxes / --box");
+    bool det_mirror = false;
+    app.add_flag("--det-mirror", det_mirror,
+                 "the detector also sees the image mirrored left-right and averages the two "
+                 "class-probability maps (two network passes)");
     app.add_option("--camera", camera_path,
                    "camera JSON: BOP camera.json, a scene_camera.json entry, or a whole "
                    "scene_camera.json with --image-id")
@@ -115,6 +119,10 @@ int main(int argc, char** argv) {
     if (refine != "none" && meshes.empty()) {
         std::fprintf(stderr, "g2l_infer: --refine %s needs --meshes FOLDER (the objects' "
                              "obj_NNNNNN.ply meshes)\n", refine.c_str());
+        return g2l::cli::kUsageError;
+    }
+    if (det_mirror && detector_path.empty()) {
+        std::fprintf(stderr, "g2l_infer: --det-mirror needs --detector FILE\n");
         return g2l::cli::kUsageError;
     }
     if (!detector_path.empty() && rgb_path.empty()) {
@@ -156,6 +164,7 @@ int main(int argc, char** argv) {
         opt.threads = threads;
         opt.models_info = models_info;
         opt.detector = detector_path;
+        opt.detector_mirror = det_mirror;
         opt.refine = refine == "icp"     ? g2l::Refinement::icp
                      : refine == "turns" ? g2l::Refinement::turns
                                          : g2l::Refinement::none;

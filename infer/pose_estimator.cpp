@@ -306,7 +306,8 @@ std::vector<ObjectBox> PoseEstimator::detect(const FrameView& f) {
     std::lock_guard<std::mutex> lock(m.mutex);
     if (m.options.threads > 0) set_num_threads(m.options.threads);
     const auto dets = nn::detect(*m.detector->net, m.detector->downscale, f.rgb, f.width,
-                                 f.height, float(m.options.min_detection_score), 1);
+                                 f.height, float(m.options.min_detection_score), 1,
+                                 m.options.detector_mirror);
     std::vector<ObjectBox> out;  // detect() returns them best first, one per class
     for (const nn::Detection& d : dets) {
         ObjectBox b;

@@ -220,7 +220,7 @@ std::vector<BenchFigure> bench_pose(const std::string& prefix, int reps, double 
             {prefix + "_rot", st[2][st[2].size() / 2], "ms", "rotation stage: blocks A, B, C + Kabsch (median)"}};
 }
 
-std::vector<BenchFigure> bench_detector(int reps, int width, int downscale) {
+std::vector<BenchFigure> bench_detector(int reps, int width, int downscale, bool mirror) {
     G2L_CHECK(reps >= 1, "bench_detector: reps must be >= 1");
     nn::DetectorConfig dc;
     dc.num_classes = 8;
@@ -233,7 +233,7 @@ std::vector<BenchFigure> bench_detector(int reps, int width, int downscale) {
     std::vector<double> ms;
     for (int r = 0; r < reps + 3; ++r) {
         const auto t0 = std::chrono::steady_clock::now();
-        const auto d = nn::detect(net, downscale, rgb.data(), 640, 480, 0.05f, 5);
+        const auto d = nn::detect(net, downscale, rgb.data(), 640, 480, 0.05f, 5, mirror);
         const double dt =
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
         if (r >= 3) ms.push_back(dt);
@@ -242,8 +242,10 @@ std::vector<BenchFigure> bench_detector(int reps, int width, int downscale) {
     const double p90 = ms[std::min(ms.size() - 1, size_t(std::ceil(0.9 * double(ms.size()))) - 1)];
     const std::string what = "2D detector on a 640 x 480 frame (downscale " +
                              std::to_string(downscale) + ", width " + std::to_string(width) +
-                             ", 8 classes), " + std::to_string(reps) + " runs";
-    return {{"detector_ms", ms[ms.size() / 2], "ms", what}, {"detector_ms_p90", p90, "ms", what}};
+                             ", 8 classes" + (mirror ? ", mirrored second pass" : "") + "), " +
+                             std::to_string(reps) + " runs";
+    const std::string name = mirror ? "detector_mirror_ms" : "detector_ms";
+    return {{name, ms[ms.size() / 2], "ms", what}, {name + "_p90", p90, "ms", what}};
 }
 
 double peak_rss_mb() {

@@ -42,8 +42,9 @@ std::vector<BenchFigure> bench_pose(const std::string& prefix, int reps, double 
 /// The 2D detector on a 640 x 480 RGB frame (nn::detect: input downscale, network, peak
 /// decoding) with the default architecture (8 classes, width 16, downscale 2; the weights do not
 /// change the time). Figures "detector_ms" (median), "detector_ms_p90" over `reps` runs after 3
-/// warm-up runs.
-std::vector<BenchFigure> bench_detector(int reps, int width = 16, int downscale = 2);
+/// warm-up runs; with `mirror` (nn::detect's mirrored second pass) "detector_mirror_ms(_p90)".
+std::vector<BenchFigure> bench_detector(int reps, int width = 16, int downscale = 2,
+                                        bool mirror = false);
 
 /// Peak resident set size of this process so far (MB; getrusage).
 double peak_rss_mb();

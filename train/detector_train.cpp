@@ -403,7 +403,7 @@ double iou(float ax, float ay, float aw, float ah, float bx, float by, float bw,
 
 DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::Dataset& ds,
                                      double min_visib, float score_threshold, int max_frames,
-                                     bool progress) {
+                                     bool progress, bool mirror) {
     G2L_CHECK(det.net, "evaluate_detector: no network");
     std::map<int, int> cls;
     for (size_t i = 0; i < det.object_ids.size(); ++i) cls[det.object_ids[i]] = int(i);
@@ -430,7 +430,7 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
         G2L_CHECK(img.channels == 3, "evaluate_detector: '", fr.rgb_path, "' is not an RGB image");
         const auto t0 = Clock::now();
         const std::vector<nn::Detection> dets =
-            nn::detect(*det.net, det.downscale, img.data.data(), img.w, img.h, 0.01f, 10);
+            nn::detect(*det.net, det.downscale, img.data.data(), img.w, img.h, 0.01f, 10, mirror);
         ms += std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
         // Visible masks: from the dataset, else rendered from the GT poses of the frame.
         bool rendered = false;
@@ -542,7 +542,7 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
 }
 
 std::vector<data::Detection> run_detector_on(const nn::LoadedDetector& det, const data::Dataset& ds,
-                                             float min_score) {
+                                             float min_score, bool mirror) {
     G2L_CHECK(det.net, "run_detector_on: no network");
     std::vector<data::Detection> out;
     for (const data::Frame& fr : ds.frames()) {
@@ -558,7 +558,7 @@ std::vector<data::Detection> run_detector_on(const nn::LoadedDetector& det, cons
         G2L_CHECK(img.channels == 3, "run_detector_on: '", fr.rgb_path, "' is not an RGB image");
         const auto t0 = Clock::now();
         const auto dets = nn::detect(*det.net, det.downscale, img.data.data(), img.w, img.h,
-                                     min_score, 3);
+                                     min_score, 3, mirror);
         const double secs = std::chrono::duration<double>(Clock::now() - t0).count();
         for (const nn::Detection& d : dets) {
             data::Detection o;

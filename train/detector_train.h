@@ -139,13 +139,15 @@ struct DetectorEvalResult {
 /// other; unannotated clutter is not modelled, so such masks can be larger than the truth).
 DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::Dataset& ds,
                                      double min_visib = 0.1, float score_threshold = 0.3f,
-                                     int max_frames = 0, bool progress = false);
+                                     int max_frames = 0, bool progress = false,
+                                     bool mirror = false);
 /// The detector on every frame of `ds` that has an RGB image: one data::Detection per class
 /// peak (scene_id from the scene folder name, image_id, obj_id, box, score, heat-map peak, the
 /// frame's detector time), as g2l_eval --boxes det feeds them to the pose evaluation. Throws
-/// for a scene name that is not a number (BOP scene ids are).
+/// for a scene name that is not a number (BOP scene ids are). `mirror`: nn::detect's
+/// mirrored second pass (both functions).
 std::vector<data::Detection> run_detector_on(const nn::LoadedDetector& det, const data::Dataset& ds,
-                                             float min_score = 0.05f);
+                                             float min_score = 0.05f, bool mirror = false);
 
 /// The table of a result (per object and mean), plain text.
 std::string detector_eval_table(const DetectorEvalResult& r);

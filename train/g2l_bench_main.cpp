@@ -57,8 +57,10 @@ int main(int argc, char** argv) {
             }
         }
         if (det_reps > 0) {
-            const auto df = g2l::train::bench_detector(quick ? 2 : det_reps);
-            figs.insert(figs.end(), df.begin(), df.end());
+            for (bool mirror : {false, true}) {
+                const auto df = g2l::train::bench_detector(quick ? 2 : det_reps, 16, 2, mirror);
+                figs.insert(figs.end(), df.begin(), df.end());
+            }
         }
         if (train_reps > 0 && !pose_only) {
             // The setting: paper architecture, batch 8, 1500 -> 1000 points.

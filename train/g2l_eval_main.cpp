@@ -130,6 +130,7 @@ int main(int argc, char** argv) {
     double min_visib = 0.0;
     int crop_points = -1, object_points = -1;
     std::string detector_path;
+    bool det_mirror = false;
     app.add_option("--checkpoint", checkpoint, "a .g2l checkpoint written by g2l_train (required "
                                                "unless --detector is evaluated alone)");
     app.add_option("--detector", detector_path,
@@ -137,6 +138,9 @@ int main(int argc, char** argv) {
                    "<run_dir>/detector.g2l). Alone (no --checkpoint): evaluates the 2D detector on "
                    "--root/--split (recall and precision at IoU 0.5, heat-map peak on the object); "
                    "with --checkpoint and --boxes det: the full pipeline, detector included");
+    app.add_flag("--det-mirror", det_mirror,
+                 "the detector also sees each image mirrored left-right and averages the two "
+                 "class-probability maps (two network passes per frame)");
     app.add_option("--config", config, "evaluate on this config's data.val BOP sources");
     app.add_option("--set", sets, "config overrides (as g2l_train)");
     app.add_option("--root", root, "BOP dataset root (instead of --config)");
@@ -202,6 +206,10 @@ int main(int argc, char** argv) {
                              "--checkpoint needs --boxes det\n");
         return g2l::cli::kUsageError;
     }
+    if (det_mirror && detector_path.empty()) {
+        std::fprintf(stderr, "g2l_eval: --det-mirror needs --detector FILE\n");
+        return g2l::cli::kUsageError;
+    }
     if (checkpoint.empty()) {  // the detector alone
         if (oracle != "none") {
             std::fprintf(stderr, "g2l_eval: --oracle %s needs --checkpoint (it replaces a pose "
@@ -218,7 +226,7 @@ int main(int argc, char** argv) {
             o.obj_ids = det.object_ids;
             const g2l::data::BopDataset ds = g2l::data::open_bop(root, split, o);
             const auto r = g2l::train::evaluate_detector(det, ds, min_visib > 0 ? min_visib : 0.1,
-                                                         0.3f, 0, true);
+                                                         0.3f, 0, true, det_mirror);
             std::printf("detector %s on %s/%s (instances with visib_fract >= %.2f):\n%s",
                         detector_path.c_str(), root.c_str(), split.c_str(),
                         min_visib > 0 ? min_visib : 0.1,
@@ -226,6 +234,7 @@ int main(int argc, char** argv) {
             if (!json_out.empty()) {
                 nlohmann::json j;
                 j["detector"] = detector_path;
+                j["mirror"] = det_mirror;
                 j["dataset"] = root + "/" + split;
                 j["frames"] = r.frames;
                 j["ms_per_frame"] = r.ms_per_frame;
@@ -358,7 +367,7 @@ int main(int argc, char** argv) {
             const auto& ds = sets_to_eval[i].second;
             std::vector<g2l::data::Detection> det_boxes;
             if (boxes == "det") {  // the detector on every frame's RGB image, timed
-                det_boxes = g2l::train::run_detector_on(*det, ds);
+                det_boxes = g2l::train::run_detector_on(*det, ds, 0.05f, det_mirror);
                 eo.detections = &det_boxes;
             }
             std::vector<g2l::train::InstanceResult> inst;

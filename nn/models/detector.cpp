@@ -223,13 +223,37 @@ LoadedDetector load_detector(const std::string& path) {
 }
 
 std::vector<Detection> detect(Detector& net, int downscale, const uint8_t* rgb, int width,
-                                  int height, float min_score, int max_per_class) {
+                                  int height, float min_score, int max_per_class, bool mirror) {
     int iw = 0, ih = 0;
     const Tensor x = detector_input(rgb, width, height, downscale, &iw, &ih);
     autograd::NoGradGuard ng;
     net.eval();
     const DetOut o = net.forward(x);
     Tensor prob = sigmoid(o.heat);
+    if (mirror) {
+        // The image mirrored left-right; its map is mirrored back over the cells that cover
+        // the image (cell x of the mirrored input is cell cols - 1 - x of the image when the
+        // input width is a whole number of cells; else the odd column is the plain pass's).
+        std::vector<uint8_t> m(size_t(width) * size_t(height) * 3);
+        for (int y = 0; y < height; ++y)
+            for (int xx = 0; xx < width; ++xx)
+                for (int c = 0; c < 3; ++c)
+                    m[(size_t(y) * width + xx) * 3 + c] =
+                        rgb[(size_t(y) * width + size_t(width - 1 - xx)) * 3 + c];
+        int mw = 0, mh = 0;
+        const Tensor pm = sigmoid(net.forward(detector_input(m.data(), width, height, downscale,
+                                                             &mw, &mh)).heat);
+        const int64_t K = prob.size(1), hh = prob.size(2), ww = prob.size(3);
+        const int64_t cols = std::min<int64_t>(ww, (width / downscale) / Detector::kStride);
+        float* p = prob.data<float>();
+        const float* q = pm.data<float>();
+        for (int64_t k = 0; k < K; ++k)
+            for (int64_t y = 0; y < hh; ++y)
+                for (int64_t c = 0; c < cols; ++c) {
+                    float& v = p[(k * hh + y) * ww + c];
+                    v = 0.5f * (v + q[(k * hh + y) * ww + (cols - 1 - c)]);
+                }
+    }
     {  // cells whose centre lies in the zero padding (outside the image) cannot be peaks
         const int64_t K = prob.size(1), hh = prob.size(2), ww = prob.size(3);
         const double real_w = double(width / downscale), real_h = double(height / downscale);

@@ -105,8 +105,11 @@ void save_detector(const std::string& path, const Detector& net,
                    const std::vector<int>& object_ids, int downscale);
 
 /// Runs the detector on one RGB image (H x W x 3): detections in the image's own pixels,
-/// best score first (ties in a stable order).
+/// best score first (ties in a stable order). With `mirror` the network also sees the image
+/// mirrored left-right and the class-probability maps of both passes are averaged (test-time
+/// augmentation: two network passes; box sizes and offsets are the plain pass's).
 std::vector<Detection> detect(Detector& net, int downscale, const uint8_t* rgb, int width,
-                                  int height, float min_score = 0.05f, int max_per_class = 5);
+                                  int height, float min_score = 0.05f, int max_per_class = 5,
+                                  bool mirror = false);
 
 }  // namespace g2l::nn

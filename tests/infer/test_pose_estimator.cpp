@@ -303,6 +303,16 @@ TEST_CASE("PoseEstimator: the detector gives boxes with peaks, and the whole pip
         REQUIRE(b.score >= 0);
     }
     REQUIRE(boxes[0].score >= boxes[1].score);
+    // With the mirrored pass: nn::detect's averaged maps, through the library.
+    g2l::EstimatorOptions om = o;
+    om.detector_mirror = true;
+    g2l::PoseEstimator est_m(kModel, om);
+    const auto boxes_m = est_m.detect(v);
+    const auto direct = g2l::nn::detect(net, 4, v.rgb, v.width, v.height, 0.0f, 1, true);
+    REQUIRE(boxes_m.size() == direct.size());
+    for (size_t i = 0; i < direct.size(); ++i) CHECK(boxes_m[i].score == Approx(direct[i].score));
+    const auto plain_direct = g2l::nn::detect(net, 4, v.rgb, v.width, v.height, 0.0f, 1);
+    CHECK(std::abs(plain_direct[0].score - direct[0].score) > 1e-6f);
     const auto poses = est.estimate(v);
     REQUIRE(poses.size() == boxes.size());
     for (size_t i = 0; i < poses.size(); ++i) REQUIRE(poses[i].obj_id == boxes[i].obj_id);

@@ -53,6 +53,11 @@ expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --root r --oracle mask
 has "mask"
 expect 2 "$B/train/g2l_eval" --detector d.g2l --root r --oracle seg
 has "--oracle seg needs --checkpoint"
+# --det-mirror is the detector's option
+expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --root r --det-mirror
+has "--det-mirror needs --detector"
+expect 2 "$B/apps/g2l_infer" --model m.g2l --depth d.png --camera c.json --box 1,0,0,9,9 --det-mirror
+has "--det-mirror needs --detector"
 expect 1 "$B/train/g2l_eval" --detector "$T/none.g2l" --root "$S/tests/data/ycbv_mini" --split train_real
 has "none.g2l"
 expect 2 "$B/apps/g2l_infer" --depth d.png --camera c.json --detector d.g2l

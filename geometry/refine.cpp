@@ -37,6 +37,36 @@ std::vector<Eigen::Matrix3d> turns(int steps) {
     return out;
 }
 
+// Connected components of the points under "closer than radius" (brute force: the observed
+// points of one object are at most a few thousand), largest first, rows ascending in each.
+std::vector<std::vector<int64_t>> euclidean_clusters(const Points& pts, double radius) {
+    const int64_t n = pts.rows();
+    const float r2 = float(radius * radius);
+    std::vector<int64_t> comp(size_t(n), -1);
+    std::vector<std::vector<int64_t>> out;
+    std::vector<int64_t> stack;
+    for (int64_t s = 0; s < n; ++s) {
+        if (comp[size_t(s)] >= 0) continue;
+        out.emplace_back();
+        comp[size_t(s)] = int64_t(out.size()) - 1;
+        stack.assign(1, s);
+        while (!stack.empty()) {
+            const int64_t a = stack.back();
+            stack.pop_back();
+            out.back().push_back(a);
+            for (int64_t b = 0; b < n; ++b)
+                if (comp[size_t(b)] < 0 && (pts.row(a) - pts.row(b)).squaredNorm() < r2) {
+                    comp[size_t(b)] = comp[size_t(s)];
+                    stack.push_back(b);
+                }
+        }
+    }
+    for (auto& c : out) std::sort(c.begin(), c.end());
+    std::stable_sort(out.begin(), out.end(),
+                     [](const auto& a, const auto& b) { return a.size() > b.size(); });
+    return out;
+}
+
 struct Icp {
     const ModelKdTree& tree;
     const Points& obs;
@@ -239,13 +269,19 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
     G2L_CHECK(!depth || (depth->depth_mm && depth->K.width > 0 && depth->K.height > 0 &&
                          depth->K.fx > 0 && depth->K.fy > 0),
               "refine_pose: the depth image needs a buffer, a size and focal lengths");
+    G2L_CHECK(std::isfinite(opt.cluster_frac) && opt.cluster_frac >= 0 &&
+                  std::isfinite(opt.cluster_min_share) && opt.cluster_min_share >= 0 &&
+                  opt.cluster_min_share <= 1,
+              "refine_pose: invalid cluster options (cluster_frac ", opt.cluster_frac,
+              ", cluster_min_share ", opt.cluster_min_share, ")");
     G2L_CHECK(!opt.support_plane || (opt.plane_tol_mm > 0 && opt.plane_depth_mm >= 0 &&
                                      opt.plane_region >= 0 && opt.plane_min_inliers >= 0 &&
                                      opt.plane_min_inliers <= 1),
               "refine_pose: invalid support-plane options (plane_tol_mm ", opt.plane_tol_mm,
               ", plane_depth_mm ", opt.plane_depth_mm, ", plane_region ", opt.plane_region,
               ", plane_min_inliers ", opt.plane_min_inliers, ")");
-    RefineResult r;
+    RefineResult base;
+    base.observed = int(n_all);
     // The support plane, found around the observed points' image box.
     Plane plane;
     if (depth && opt.support_plane) {
@@ -264,73 +300,102 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
                       int(std::ceil(u1 + gu)) + 1, int(std::ceil(v1 + gv)) + 1, opt.plane_tol_mm,
                       &plane) &&
             plane.inlier_frac >= opt.plane_min_inliers) {
-            r.plane = true;
+            base.plane = true;
         }
-    }
-    const int64_t n = std::min<int64_t>(n_all, opt.max_points);
-    Points obs(n, 3);
-    for (int64_t i = 0; i < n; ++i) {
-        obs.row(i) = obs_all.row(i * n_all / n);
     }
     G2L_CHECK(!normals || normals->rows() == tree.size(), "refine_pose: ", normals ? normals->rows() : 0,
               " normals for ", tree.size(), " model points");
-    Icp icp{tree, obs, normals, opt.inlier_frac * info.diameter, {}, {}, {}};
-    const Eigen::Vector3d c = info.min + 0.5 * info.size;
-    const std::vector<Eigen::Matrix3d> T =
-        opt.hypotheses ? turns(opt.axis_steps) : std::vector<Eigen::Matrix3d>{Eigen::Matrix3d::Identity()};
-    const Points& tp = tree.points();
-    const int64_t nm = std::min<int64_t>(tp.rows(), std::max(1, opt.model_points));
-    Points model_sub(nm, 3);
-    for (int64_t i = 0; i < nm; ++i) model_sub.row(i) = tp.row(i * tp.rows() / nm);
-    const double cap = opt.inlier_frac * info.diameter;
-    auto cost = [&](const Pose& p, double fit, double* viol) {
-        *viol = depth ? free_space_violation(model_sub, p, *depth, opt.free_space_frac * info.diameter)
-                      : 0.0;
-        if (r.plane) {  // model points beneath the support plane
-            const Eigen::Vector3d pn = p.R.transpose() * plane.n;
-            const double pd = plane.n.dot(p.t) + plane.d;
-            int64_t under = 0;
-            for (int64_t i = 0; i < nm; ++i)
-                under += pn.dot(model_sub.row(i).transpose().cast<double>()) + pd < -opt.plane_depth_mm;
-            *viol += double(under) / double(nm);
+    // The search from the networks' pose and its turns over one set of observed points.
+    auto search = [&](const Points& src) {
+        RefineResult r = base;
+        const int64_t n_src = src.rows();
+        const int64_t n = std::min<int64_t>(n_src, opt.max_points);
+        Points obs(n, 3);
+        for (int64_t i = 0; i < n; ++i) {
+            obs.row(i) = src.row(i * n_src / n);
         }
-        return fit + opt.free_space_weight * cap * *viol;
+        Icp icp{tree, obs, normals, opt.inlier_frac * info.diameter, {}, {}, {}};
+        const Eigen::Vector3d c = info.min + 0.5 * info.size;
+        const std::vector<Eigen::Matrix3d> T =
+            opt.hypotheses ? turns(opt.axis_steps) : std::vector<Eigen::Matrix3d>{Eigen::Matrix3d::Identity()};
+        const Points& tp = tree.points();
+        const int64_t nm = std::min<int64_t>(tp.rows(), std::max(1, opt.model_points));
+        Points model_sub(nm, 3);
+        for (int64_t i = 0; i < nm; ++i) model_sub.row(i) = tp.row(i * tp.rows() / nm);
+        const double cap = opt.inlier_frac * info.diameter;
+        auto cost = [&](const Pose& p, double fit, double* viol) {
+            *viol = depth ? free_space_violation(model_sub, p, *depth, opt.free_space_frac * info.diameter)
+                          : 0.0;
+            if (r.plane) {  // model points beneath the support plane
+                const Eigen::Vector3d pn = p.R.transpose() * plane.n;
+                const double pd = plane.n.dot(p.t) + plane.d;
+                int64_t under = 0;
+                for (int64_t i = 0; i < nm; ++i)
+                    under += pn.dot(model_sub.row(i).transpose().cast<double>()) + pd < -opt.plane_depth_mm;
+                *viol += double(under) / double(nm);
+            }
+            return fit + opt.free_space_weight * cap * *viol;
+        };
+        struct Hyp { Pose pose; double fit; int index; double viol = 0; };
+        // Each start is independent (its own ICP scratch): OpenMP over starts; the result does not
+        // depend on the thread count.
+        std::vector<Hyp> hyps(T.size());
+#pragma omp parallel for schedule(dynamic, 1) firstprivate(icp)
+        for (int64_t h = 0; h < int64_t(T.size()); ++h) {
+            // init composed with the turn about the box centre: p -> R0 (Rs (p - c) + c) + t0.
+            Hyp& y = hyps[size_t(h)];
+            y.pose.R = init.R * T[size_t(h)];
+            y.pose.t = init.R * (c - T[size_t(h)] * c) + init.t;
+            y.index = int(h);
+            y.fit = cost(y.pose, icp.run(y.pose, opt.coarse_iterations), &y.viol);
+        }
+        // The network's start and the best turned starts get the full iterations.
+        std::vector<Hyp> rest(hyps.begin() + 1, hyps.end());
+        std::stable_sort(rest.begin(), rest.end(), [](const Hyp& a, const Hyp& b) { return a.fit < b.fit; });
+        std::vector<Hyp> final{hyps[0]};
+        for (size_t i = 0; i < std::min<size_t>(size_t(std::max(0, opt.finalists)), rest.size()); ++i) final.push_back(rest[i]);
+#pragma omp parallel for schedule(dynamic, 1) firstprivate(icp)
+        for (int64_t i = 0; i < int64_t(final.size()); ++i) {
+            Hyp& y = final[size_t(i)];
+            y.fit = cost(y.pose, icp.run(y.pose, opt.iterations), &y.viol);
+        }
+        r.pose = final[0].pose;
+        r.fit_mm = r.start_fit_mm = final[0].fit;
+        r.violation = final[0].viol;
+        r.hypotheses = int(T.size());
+        for (size_t i = 1; i < final.size(); ++i)
+            if (final[i].fit < opt.switch_ratio * final[0].fit && final[i].fit < r.fit_mm) {
+                r.pose = final[i].pose;
+                r.fit_mm = final[i].fit;
+                r.violation = final[i].viol;
+                r.hypothesis = final[i].index;
+            }
+        return r;
     };
-    struct Hyp { Pose pose; double fit; int index; double viol = 0; };
-    // Each start is independent (its own ICP scratch): OpenMP over starts; the result does not
-    // depend on the thread count.
-    std::vector<Hyp> hyps(T.size());
-#pragma omp parallel for schedule(dynamic, 1) firstprivate(icp)
-    for (int64_t h = 0; h < int64_t(T.size()); ++h) {
-        // init composed with the turn about the box centre: p -> R0 (Rs (p - c) + c) + t0.
-        Hyp& y = hyps[size_t(h)];
-        y.pose.R = init.R * T[size_t(h)];
-        y.pose.t = init.R * (c - T[size_t(h)] * c) + init.t;
-        y.index = int(h);
-        y.fit = cost(y.pose, icp.run(y.pose, opt.coarse_iterations), &y.viol);
+    RefineResult best = search(obs_all);
+    if (opt.cluster_frac > 0) {
+        // The observed points split into Euclidean clusters (points closer than cluster_frac of
+        // the diameter joined): the segmentation may have taken a neighbouring object too.
+        // Each cluster holding at least cluster_min_share of the points is searched on its own;
+        // the lowest cost (fit plus penalties) wins.
+        const std::vector<std::vector<int64_t>> clusters =
+            euclidean_clusters(obs_all, opt.cluster_frac * info.diameter);
+        if (clusters.size() > 1)
+            for (size_t k = 0; k < clusters.size(); ++k) {
+                const auto& rows = clusters[k];
+                if (rows.size() < 3 || double(rows.size()) < opt.cluster_min_share * double(n_all))
+                    continue;
+                Points sub(int64_t(rows.size()), 3);
+                for (size_t i = 0; i < rows.size(); ++i) sub.row(int64_t(i)) = obs_all.row(rows[i]);
+                RefineResult rc = search(sub);
+                if (rc.fit_mm < best.fit_mm) {
+                    rc.cluster = int(k);
+                    rc.observed = int(rows.size());
+                    best = rc;
+                }
+            }
     }
-    // The network's start and the best turned starts get the full iterations.
-    std::vector<Hyp> rest(hyps.begin() + 1, hyps.end());
-    std::stable_sort(rest.begin(), rest.end(), [](const Hyp& a, const Hyp& b) { return a.fit < b.fit; });
-    std::vector<Hyp> final{hyps[0]};
-    for (size_t i = 0; i < std::min<size_t>(size_t(std::max(0, opt.finalists)), rest.size()); ++i) final.push_back(rest[i]);
-#pragma omp parallel for schedule(dynamic, 1) firstprivate(icp)
-    for (int64_t i = 0; i < int64_t(final.size()); ++i) {
-        Hyp& y = final[size_t(i)];
-        y.fit = cost(y.pose, icp.run(y.pose, opt.iterations), &y.viol);
-    }
-    r.pose = final[0].pose;
-    r.fit_mm = r.start_fit_mm = final[0].fit;
-    r.violation = final[0].viol;
-    r.hypotheses = int(T.size());
-    for (size_t i = 1; i < final.size(); ++i)
-        if (final[i].fit < opt.switch_ratio * final[0].fit && final[i].fit < r.fit_mm) {
-            r.pose = final[i].pose;
-            r.fit_mm = final[i].fit;
-            r.violation = final[i].viol;
-            r.hypothesis = final[i].index;
-        }
-    return r;
+    return best;
 }
 
 }  // namespace g2l::geom

@@ -42,6 +42,13 @@ struct RefineOptions {
     double plane_depth_mm = 8.0;
     double plane_region = 1.0;
     double plane_min_inliers = 0.4;
+    /// Clusters: when > 0 the observed points are also split into Euclidean clusters (points
+    /// closer than cluster_frac * diameter joined) and, when there is more than one, each
+    /// cluster holding at least cluster_min_share of them is searched on its own (the
+    /// segmentation may have taken a neighbouring object along: the YCB-Video banana); the
+    /// lowest cost wins. 0 = off.
+    double cluster_frac = 0.1;
+    double cluster_min_share = 0.25;
 };
 
 /// A plane n . p + d = 0 in the camera frame (unit n, the camera on its positive side, d > 0).
@@ -69,6 +76,8 @@ struct RefineResult {
     int hypothesis = 0;     ///< 0 = the network's pose, else the index of the turn that won
     int hypotheses = 1;     ///< starts tried
     bool plane = false;     ///< a support plane was found and used
+    int cluster = -1;       ///< -1: all observed points; else the cluster (largest first) that won
+    int observed = 0;       ///< observed points the winning search used
 };
 
 /// The dominant plane of the measured pixels of `depth` in the image box [x0, x1) x [y0, y1)

@@ -258,6 +258,7 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                         &model_geom[inst.obj_id].normals);
                     est.pose = rr.pose;
                     res.refine_hyp = rr.hypothesis;
+                    res.refine_cluster = rr.cluster;
                     res.fit_mm = rr.fit_mm;
                     res.gt_fit_mm = geom::fit_error(*model_geom[inst.obj_id].tree, obs, inst.pose,
                                                     0.1 * om.info.diameter);

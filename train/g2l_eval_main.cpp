@@ -60,6 +60,7 @@ void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::train::I
                 j["addsym_mm"] = r.addsym_mm;
                 if (r.refine_hyp >= 0) {
                     j["refine_hypothesis"] = r.refine_hyp;
+                    j["refine_cluster"] = r.refine_cluster;
                     j["fit_mm"] = r.fit_mm;
                     j["gt_fit_mm"] = r.gt_fit_mm;
                 }

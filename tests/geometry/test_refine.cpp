@@ -295,3 +295,44 @@ TEST_CASE("refine_pose: a pose sunk into the support plane pays for it; without 
     opt.plane_tol_mm = 0;
     CHECK_THROWS_WITH(refine_pose(tree, info, obs, gt, opt, &di), Contains("plane_tol_mm 0"));
 }
+
+TEST_CASE("refine_pose: a neighbouring object's points form their own cluster and are left out",
+          "[geometry][refine]") {
+    // The bumped box at its pose plus a flat 80 x 80 mm patch 40 mm beside it (a neighbour the
+    // segmentation took along): two clusters at 10% of the diameter (~14 mm).
+    const Points model = bumped_box();
+    const ModelKdTree tree(model);
+    const ModelInfo info = compute_model_info(model);
+    const Pose gt = gt_pose();
+    const Points obj = transform(model, gt);
+    std::vector<Eigen::Vector3f> patch;
+    for (float a = 0; a <= 80; a += 4)
+        for (float b = 0; b <= 80; b += 4)
+            patch.push_back(obj.colwise().maxCoeff().transpose() + Eigen::Vector3f(40.f + a, b - 40.f, 0.f));
+    Points obs(obj.rows() + Eigen::Index(patch.size()), 3);
+    obs.topRows(obj.rows()) = obj;
+    for (size_t i = 0; i < patch.size(); ++i) obs.row(obj.rows() + Eigen::Index(i)) = patch[i].transpose();
+    RefineOptions opt;
+    opt.hypotheses = false;
+    opt.max_points = int(obs.rows());  // every point: the fits compare exactly
+    const RefineResult split = refine_pose(tree, info, obs, gt, opt);
+    CHECK(split.cluster == 0);  // the largest cluster: the box
+    CHECK(split.observed == int(obj.rows()));
+    CHECK(split.fit_mm < 0.5);
+    CHECK(rotation_error_deg(split.pose.R, gt.R) < 0.5);
+    CHECK((split.pose.t - gt.t).norm() < 1.0);
+    opt.cluster_frac = 0;  // off: all points, the patch's capped distances in the fit
+    const RefineResult all = refine_pose(tree, info, obs, gt, opt);
+    CHECK(all.cluster == -1);
+    CHECK(all.observed == int(obs.rows()));
+    CHECK(all.fit_mm > split.fit_mm + 0.5 * opt.inlier_frac * info.diameter * double(patch.size()) /
+                                          double(obs.rows()));
+    opt.cluster_frac = 0.1;
+    opt.cluster_min_share = 0.99;  // no cluster holds 99% of the points: only the whole set
+    CHECK(refine_pose(tree, info, obs, gt, opt).cluster == -1);
+    opt.cluster_min_share = 1.5;
+    CHECK_THROWS_WITH(refine_pose(tree, info, obs, gt, opt), Contains("cluster_min_share 1.5"));
+    opt.cluster_min_share = 0.25;
+    opt.cluster_frac = -1;
+    CHECK_THROWS_WITH(refine_pose(tree, info, obs, gt, opt), Contains("cluster_frac -1"));
+}

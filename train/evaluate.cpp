@@ -359,10 +359,11 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
     avg.name = "average";
     avg.count = all.count;
     avg.misses = all.misses;
-    int seg_objects = 0;
+    int seg_objects = 0;  // objects with a seg IoU (-1: none measured)
+    double seg_sum = 0;
     for (const auto& s : rep.objects) {
         if (s.seg_iou >= 0) {
-            avg.seg_iou = (seg_objects ? avg.seg_iou : 0) + s.seg_iou;
+            seg_sum += s.seg_iou;
             seg_objects++;
         }
         avg.acc_add_s_10 += s.acc_add_s_10 / double(rep.objects.size());
@@ -373,7 +374,7 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
         avg.rot_err_sym_deg_median += s.rot_err_sym_deg_median / double(rep.objects.size());
         avg.median_trans_err_mm += s.median_trans_err_mm / double(rep.objects.size());
     }
-    if (seg_objects) avg.seg_iou /= seg_objects;
+    avg.seg_iou = seg_objects ? seg_sum / seg_objects : -1;
     avg.mean_rot_err_deg = all.found ? all.rot / all.found : 0;
     avg.mean_trans_err_mm = all.found ? all.trans / all.found : 0;
     return rep;

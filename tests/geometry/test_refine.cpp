@@ -221,7 +221,7 @@ Intrinsics table_camera() {
 
 }  // namespace
 
-TEST_CASE("fit_plane: the table around an object, deterministic; no depth, bad options",
+TEST_CASE("fit_plane: the table around an object, deterministic, no depth, bad options",
           "[geometry][refine]") {
     // A tilted table: n . p + d = 0 with n = (0, -0.6, -0.8), d = 900 (camera on the + side),
     // a 40 x 40 px block 60 mm nearer in the middle and a band of missing pixels.
@@ -258,7 +258,7 @@ TEST_CASE("fit_plane: the table around an object, deterministic; no depth, bad o
     CHECK_THROWS_WITH(fit_plane(DepthImage{}, 0, 0, 10, 10, 4.0, &q), Contains("depth image"));
 }
 
-TEST_CASE("refine_pose: a pose sunk into the support plane pays for it; without the plane it "
+TEST_CASE("refine_pose: a pose sunk into the support plane pays for it, without the plane it "
           "does not", "[geometry][refine]") {
     // The bumped box with its bump towards the camera, resting on a table at 1000 mm.
     const Points model = bumped_box();

@@ -305,6 +305,29 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
     }
     G2L_CHECK(!normals || normals->rows() == tree.size(), "refine_pose: ", normals ? normals->rows() : 0,
               " normals for ", tree.size(), " model points");
+    // What every searched point set shares: the turns, the model points projected for the
+    // penalties, and the cost (capped fit + the free-space and support-plane penalties).
+    const double cap = opt.inlier_frac * info.diameter;
+    const Eigen::Vector3d c = info.min + 0.5 * info.size;
+    const std::vector<Eigen::Matrix3d> T =
+        opt.hypotheses ? turns(opt.axis_steps) : std::vector<Eigen::Matrix3d>{Eigen::Matrix3d::Identity()};
+    const Points& tp = tree.points();
+    const int64_t nm = std::min<int64_t>(tp.rows(), std::max(1, opt.model_points));
+    Points model_sub(nm, 3);
+    for (int64_t i = 0; i < nm; ++i) model_sub.row(i) = tp.row(i * tp.rows() / nm);
+    auto cost = [&](const Pose& p, double fit, double* viol) {
+        *viol = depth ? free_space_violation(model_sub, p, *depth, opt.free_space_frac * info.diameter)
+                      : 0.0;
+        if (base.plane) {  // model points beneath the support plane
+            const Eigen::Vector3d pn = p.R.transpose() * plane.n;
+            const double pd = plane.n.dot(p.t) + plane.d;
+            int64_t under = 0;
+            for (int64_t i = 0; i < nm; ++i)
+                under += pn.dot(model_sub.row(i).transpose().cast<double>()) + pd < -opt.plane_depth_mm;
+            *viol += double(under) / double(nm);
+        }
+        return fit + opt.free_space_weight * cap * *viol;
+    };
     // The search from the networks' pose and its turns over one set of observed points.
     auto search = [&](const Points& src) {
         RefineResult r = base;
@@ -314,28 +337,7 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
         for (int64_t i = 0; i < n; ++i) {
             obs.row(i) = src.row(i * n_src / n);
         }
-        Icp icp{tree, obs, normals, opt.inlier_frac * info.diameter, {}, {}, {}};
-        const Eigen::Vector3d c = info.min + 0.5 * info.size;
-        const std::vector<Eigen::Matrix3d> T =
-            opt.hypotheses ? turns(opt.axis_steps) : std::vector<Eigen::Matrix3d>{Eigen::Matrix3d::Identity()};
-        const Points& tp = tree.points();
-        const int64_t nm = std::min<int64_t>(tp.rows(), std::max(1, opt.model_points));
-        Points model_sub(nm, 3);
-        for (int64_t i = 0; i < nm; ++i) model_sub.row(i) = tp.row(i * tp.rows() / nm);
-        const double cap = opt.inlier_frac * info.diameter;
-        auto cost = [&](const Pose& p, double fit, double* viol) {
-            *viol = depth ? free_space_violation(model_sub, p, *depth, opt.free_space_frac * info.diameter)
-                          : 0.0;
-            if (r.plane) {  // model points beneath the support plane
-                const Eigen::Vector3d pn = p.R.transpose() * plane.n;
-                const double pd = plane.n.dot(p.t) + plane.d;
-                int64_t under = 0;
-                for (int64_t i = 0; i < nm; ++i)
-                    under += pn.dot(model_sub.row(i).transpose().cast<double>()) + pd < -opt.plane_depth_mm;
-                *viol += double(under) / double(nm);
-            }
-            return fit + opt.free_space_weight * cap * *viol;
-        };
+        Icp icp{tree, obs, normals, cap, {}, {}, {}};
         struct Hyp { Pose pose; double fit; int index; double viol = 0; };
         // Each start is independent (its own ICP scratch): OpenMP over starts; the result does not
         // depend on the thread count.

@@ -266,7 +266,7 @@ TEST_CASE("refine_pose: a pose sunk into the support plane pays for it, without 
     const ModelInfo info = compute_model_info(model);
     Pose gt;
     gt.R = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
-    gt.t = Eigen::Vector3d(0, 0, 980);  // the box's far face (model -z... now +z) at 1000 mm
+    gt.t = Eigen::Vector3d(0, 0, 980);  // the box spans 960-1000 mm: it rests on the table
     const Intrinsics K = table_camera();
     const Points obs = transform(model, gt);
     const std::vector<float> depth = table_with(obs, K);

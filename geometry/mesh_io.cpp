@@ -349,7 +349,8 @@ Mesh load_ply(const std::string& path) {
             G2L_CHECK(!have_face, "load_ply: '", path, "': two face elements");
             read_faces(r, e, m);
             have_face = true;
-        } else {  // unknown element (edge, material, ...): consume with its declared types
+        } else if (!e.props.empty()) {  // unknown element (edge, material, ...): consume
+            // with its declared types (one without properties holds no data, whatever its count)
             r.elem = e.name.c_str();
             for (int64_t i = 0; i < e.count; ++i) {
                 r.index = i;

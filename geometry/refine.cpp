@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "core/error.h"
 #include "geometry/kabsch.h"
@@ -67,6 +68,33 @@ std::vector<std::vector<int64_t>> euclidean_clusters(const Points& pts, double r
     return out;
 }
 
+// Distance from x (model frame) to its nearest model point, that point's row to *index: the
+// k-d tree's exact one, or with `grid` the one of x's cell (infinity outside the grid).
+inline float nearest_of(const ModelKdTree& tree, const ClosestPointGrid* grid,
+                        const Eigen::Vector3f& x, int* index) {
+    if (!grid) return tree.nearest(x, index);
+    const int k = grid->lookup(x);
+    *index = std::max(k, 0);
+    if (k < 0) return std::numeric_limits<float>::infinity();
+    return (x - tree.points().row(k).transpose()).norm();
+}
+
+// fit_error with the grid's nearest points when `grid` is set.
+double fit_with(const ModelKdTree& tree, const ClosestPointGrid* grid, const Points& obs,
+                const Pose& pose, double cap_mm) {
+    if (!grid) return fit_error(tree, obs, pose, cap_mm);
+    if (obs.rows() == 0) return cap_mm;
+    const Eigen::Matrix3f Rt = pose.R.transpose().cast<float>();
+    const Eigen::Vector3f t = pose.t.cast<float>();
+    double sum = 0;
+    int idx = 0;
+    for (int64_t i = 0; i < obs.rows(); ++i) {
+        const Eigen::Vector3f q = obs.row(i).transpose();
+        sum += std::min<double>(cap_mm, nearest_of(tree, grid, Rt * (q - t), &idx));
+    }
+    return sum / double(obs.rows());
+}
+
 struct Icp {
     const ModelKdTree& tree;
     const Points& obs;
@@ -75,8 +103,9 @@ struct Icp {
     Points M, Q;   // scratch pairs
     std::vector<float> d;
 
-    // `iters` ICP steps from `pose`; returns the fit of the final pose.
-    double run(Pose& pose, int iters) {
+    // `iters` ICP steps from `pose` (nearest points from `grid` when set, else the k-d tree);
+    // returns the fit of the final pose, measured the same way.
+    double run(Pose& pose, int iters, const ClosestPointGrid* grid = nullptr) {
         const int64_t n = obs.rows();
         M.resize(n, 3);
         Q.resize(n, 3);
@@ -88,7 +117,7 @@ struct Icp {
             const Eigen::Vector3f t = pose.t.cast<float>();
             for (int64_t i = 0; i < n; ++i) {
                 const Eigen::Vector3f q = obs.row(i).transpose();
-                d[size_t(i)] = tree.nearest(Rt * (q - t), &idx[size_t(i)]);
+                d[size_t(i)] = nearest_of(tree, grid, Rt * (q - t), &idx[size_t(i)]);
             }
             // Inliers: pairs within cap_mm. (A tighter, median-based cut keeps only the points
             // that already lie on the surface, and a pose slid along a flat face stays there.)
@@ -141,7 +170,7 @@ struct Icp {
             pose = next;
             if (dR < 1e-5 && dt < 1e-3) break;
         }
-        return fit_error(tree, obs, pose, cap_mm);
+        return fit_with(tree, grid, obs, pose, cap_mm);
     }
 };
 
@@ -224,6 +253,47 @@ double fit_error(const ModelKdTree& tree, const Points& obs, const Pose& pose, d
     return sum / double(obs.rows());
 }
 
+ClosestPointGrid::ClosestPointGrid(const ModelKdTree& tree, double cell_mm, double margin_mm,
+                                   int64_t max_cells) {
+    G2L_CHECK(std::isfinite(cell_mm) && cell_mm > 0, "ClosestPointGrid: cell_mm must be > 0, got ",
+              cell_mm);
+    G2L_CHECK(std::isfinite(margin_mm) && margin_mm >= 0,
+              "ClosestPointGrid: margin_mm must be >= 0, got ", margin_mm);
+    const Points& p = tree.points();
+    const Eigen::Vector3f lo = p.colwise().minCoeff().transpose().array() - float(margin_mm);
+    const Eigen::Vector3f hi = p.colwise().maxCoeff().transpose().array() + float(margin_mm);
+    const auto count = [&](int a) { return std::max<int64_t>(1, int64_t(std::ceil((hi[a] - lo[a]) / cell_mm))); };
+    const int64_t nx = count(0), ny = count(1), nz = count(2);
+    G2L_CHECK(double(nx) * double(ny) * double(nz) <= double(max_cells), "ClosestPointGrid: ", nx,
+              " x ", ny, " x ", nz, " cells of ", cell_mm, " mm exceed the limit of ", max_cells,
+              " (use larger cells)");
+    lo_ = lo;
+    cell_ = cell_mm;
+    margin_ = margin_mm;
+    inv_cell_ = float(1.0 / cell_mm);
+    nx_ = nx, ny_ = ny, nz_ = nz;
+    tree_points_ = tree.size();
+    cells_.assign(size_t(nx * ny * nz), 0);
+#pragma omp parallel for schedule(static)
+    for (int64_t z = 0; z < nz; ++z)
+        for (int64_t y = 0; y < ny; ++y)
+            for (int64_t x = 0; x < nx; ++x) {
+                const Eigen::Vector3f c = lo + Eigen::Vector3f(float(x) + 0.5f, float(y) + 0.5f,
+                                                               float(z) + 0.5f) * float(cell_mm);
+                int idx = 0;
+                tree.nearest(c, &idx);
+                cells_[size_t((z * ny + y) * nx + x)] = int32_t(idx);
+            }
+}
+
+ClosestPointGrid ClosestPointGrid::for_refine(const ModelKdTree& tree, const ModelInfo& info,
+                                              const RefineOptions& opt) {
+    G2L_CHECK(std::isfinite(info.diameter) && info.diameter > 0,
+              "ClosestPointGrid::for_refine: model diameter must be > 0, got ", info.diameter);
+    const double cell = std::clamp(info.diameter / 80.0, 1.0, 4.0);
+    return ClosestPointGrid(tree, cell, opt.inlier_frac * info.diameter);
+}
+
 double free_space_violation(const Points& model_pts, const Pose& pose, const DepthImage& dimg,
                             double tol_mm) {
     const Intrinsics& K = dimg.K;
@@ -247,7 +317,7 @@ double free_space_violation(const Points& model_pts, const Pose& pose, const Dep
 
 RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const Points& obs_all,
                          const Pose& init, const RefineOptions& opt, const DepthImage* depth,
-                         const Points* normals) {
+                         const Points* normals, const ClosestPointGrid* grid) {
     G2L_CHECK(std::isfinite(info.diameter) && info.diameter > 0,
               "refine_pose: model diameter must be > 0, got ", info.diameter);
     G2L_CHECK(obs_all.rows() >= 3, "refine_pose: need at least 3 observed points, got ",
@@ -280,6 +350,16 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
               "refine_pose: invalid support-plane options (plane_tol_mm ", opt.plane_tol_mm,
               ", plane_depth_mm ", opt.plane_depth_mm, ", plane_region ", opt.plane_region,
               ", plane_min_inliers ", opt.plane_min_inliers, ")");
+    G2L_CHECK(opt.polish_iterations >= 0, "refine_pose: polish_iterations must be >= 0, got ",
+              opt.polish_iterations);
+    G2L_CHECK(!grid || grid->empty() || grid->margin_mm() >= opt.inlier_frac * info.diameter * (1 - 1e-9),
+              "refine_pose: the grid's margin (", grid ? grid->margin_mm() : 0.0,
+              " mm) is below the inlier cap (", opt.inlier_frac * info.diameter,
+              " mm): build it with ClosestPointGrid::for_refine");
+    G2L_CHECK(!grid || grid->empty() || grid->tree_points() == tree.size(),
+              "refine_pose: the grid was built over a tree of ", grid ? grid->tree_points() : 0,
+              " points, this tree has ", tree.size());
+    if (grid && grid->empty()) grid = nullptr;
     RefineResult base;
     base.observed = int(n_all);
     // The support plane, found around the observed points' image box.
@@ -349,7 +429,7 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
             y.pose.R = init.R * T[size_t(h)];
             y.pose.t = init.R * (c - T[size_t(h)] * c) + init.t;
             y.index = int(h);
-            y.fit = cost(y.pose, icp.run(y.pose, opt.coarse_iterations), &y.viol);
+            y.fit = cost(y.pose, icp.run(y.pose, opt.coarse_iterations, grid), &y.viol);
         }
         // The network's start and the best turned starts get the full iterations.
         std::vector<Hyp> rest(hyps.begin() + 1, hyps.end());
@@ -359,7 +439,9 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
 #pragma omp parallel for schedule(dynamic, 1) firstprivate(icp)
         for (int64_t i = 0; i < int64_t(final.size()); ++i) {
             Hyp& y = final[size_t(i)];
-            y.fit = cost(y.pose, icp.run(y.pose, opt.iterations), &y.viol);
+            double fit = icp.run(y.pose, opt.iterations, grid);
+            if (grid) fit = icp.run(y.pose, opt.polish_iterations);  // exact steps and fit
+            y.fit = cost(y.pose, fit, &y.viol);
         }
         r.pose = final[0].pose;
         r.fit_mm = r.start_fit_mm = final[0].fit;

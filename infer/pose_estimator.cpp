@@ -78,6 +78,7 @@ struct PoseEstimator::Impl {
     struct Mesh {
         std::unique_ptr<geom::ModelKdTree> tree;
         geom::Points normals;  // of the tree points (point-to-plane ICP)
+        geom::ClosestPointGrid grid;  // nearest tree point per cell (the ICP's fast lookups)
         geom::ModelInfo info;
     };
     std::map<int, Mesh> meshes;
@@ -134,6 +135,7 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
             me.tree = std::make_unique<geom::ModelKdTree>(geom::ModelKdTree::from_mesh(mesh));
             me.normals = me.tree->normals();
             me.info = geom::compute_model_info(mesh.vertices);
+            me.grid = geom::ClosestPointGrid::for_refine(*me.tree, me.info);
         }
         G2L_CHECK(!m.meshes.empty(), "PoseEstimator: EstimatorOptions::meshes '", options.meshes,
                   "' has no obj_NNNNNN.ply mesh of the model's objects");
@@ -277,7 +279,8 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
                     ro.hypotheses = m.options.refine == Refinement::turns;
                     const geom::DepthImage di{depth, K};
                     const geom::RefineResult rr =
-                        geom::refine_pose(*me.tree, me.info, obs, e.pose, ro, &di, &me.normals);
+                        geom::refine_pose(*me.tree, me.info, obs, e.pose, ro, &di, &me.normals,
+                                          &me.grid);
                     e.pose = rr.pose;
                     p.fit_mm = rr.fit_mm;
                     p.refined = true;

@@ -8,10 +8,16 @@
 #include "nn/models/g2l_pose.h"
 
 #include <algorithm>
+#include <Eigen/Geometry>
 #include <chrono>
 
 #include "core/autograd.h"
+#include "core/error.h"
 #include "core/rng.h"
+#include "geometry/labels.h"
+#include "geometry/metrics.h"
+#include "geometry/model_info.h"
+#include "geometry/refine.h"
 #include "kernels/gemm.h"
 #include "nn/models/detector.h"
 #include "nn/models/g2l_net.h"
@@ -246,6 +252,113 @@ std::vector<BenchFigure> bench_detector(int reps, int width, int downscale, bool
                              std::to_string(reps) + " runs";
     const std::string name = mirror ? "detector_mirror_ms" : "detector_ms";
     return {{name, ms[ms.size() / 2], "ms", what}, {name + "_p90", p90, "ms", what}};
+}
+
+std::vector<BenchFigure> bench_refine(int reps) {
+    G2L_CHECK(reps >= 1, "bench_refine: reps must be >= 1");
+    // The model: a box's surface with a bump on one corner of its top face, 2 mm apart.
+    std::vector<Eigen::Vector3f> pts;
+    const Eigen::Vector3f h(75, 45, 30);
+    const float step = 2;
+    for (int axis = 0; axis < 3; ++axis) {
+        const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+        for (float a = -h[u]; a <= h[u] + 1e-3f; a += step)
+            for (float b = -h[v]; b <= h[v] + 1e-3f; b += step)
+                for (float sgn : {-1.f, 1.f}) {
+                    Eigen::Vector3f p;
+                    p[axis] = sgn * h[axis];
+                    p[u] = a;
+                    p[v] = b;
+                    pts.push_back(p);
+                }
+    }
+    for (float a = 0; a <= 30; a += step)
+        for (float b = 0; b <= 30; b += step)
+            for (float c = 0; c <= 30; c += step)
+                if (a == 0 || b == 0 || c == 30 || a >= 29 || b >= 29)
+                    pts.push_back(Eigen::Vector3f(h.x() - 30 + a, h.y() - 30 + b, h.z() + c));
+    geom::Points model(int64_t(pts.size()), 3);
+    for (size_t i = 0; i < pts.size(); ++i) model.row(int64_t(i)) = pts[i].transpose();
+    const geom::ModelKdTree tree(model);
+    const geom::Points normals = tree.normals();
+    const geom::ModelInfo info = geom::compute_model_info(model);
+    // The scene: the box standing on a table plane, seen from 800 mm and 40 degrees above.
+    geom::Intrinsics K;
+    K.fx = K.fy = 600;
+    K.cx = 320;
+    K.cy = 240;
+    K.width = 640;
+    K.height = 480;
+    const Eigen::Matrix3d tilt =
+        Eigen::AngleAxisd(-50 * 3.14159265358979 / 180, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    geom::Pose gt;
+    gt.R = tilt * Eigen::AngleAxisd(0.6, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    gt.t = Eigen::Vector3d(10, -5, 800);
+    const Eigen::Vector3d up = gt.R.col(2);  // the table's normal (towards the camera side)
+    const Eigen::Vector3d on_table = gt.t - h.z() * up;
+    std::vector<float> depth(size_t(K.width) * size_t(K.height), 0.f);
+    for (int v = 0; v < K.height; ++v)
+        for (int u = 0; u < K.width; ++u) {
+            const Eigen::Vector3d ray((u + 0.5 - K.cx) / K.fx, (v + 0.5 - K.cy) / K.fy, 1.0);
+            const double den = up.dot(ray);
+            if (std::abs(den) < 1e-9) continue;
+            const double z = up.dot(on_table) / den;
+            if (z > 0) depth[size_t(v) * K.width + u] = float(z);
+        }
+    std::vector<int64_t> owner(depth.size(), -1);
+    for (int64_t i = 0; i < model.rows(); ++i) {  // z-buffer of the posed model points
+        const Eigen::Vector3d q = gt.R * model.row(i).transpose().cast<double>() + gt.t;
+        const int u = int(K.fx * q.x() / q.z() + K.cx), v = int(K.fy * q.y() / q.z() + K.cy);
+        if (u < 0 || v < 0 || u >= K.width || v >= K.height) continue;
+        float& z = depth[size_t(v) * K.width + u];
+        if (q.z() < z || owner[size_t(v) * K.width + u] < 0) {
+            z = float(q.z());
+            owner[size_t(v) * K.width + u] = i;
+        }
+    }
+    std::vector<Eigen::Vector3f> seen;
+    for (size_t p = 0; p < owner.size(); ++p)
+        if (owner[p] >= 0)
+            seen.push_back((gt.R * model.row(owner[p]).transpose().cast<double>() + gt.t).cast<float>());
+    // ~1,000 of them, evenly strided: about the object points of a crop of sampling.points.
+    const size_t n_obs = std::min<size_t>(seen.size(), 1000);
+    geom::Points obs(int64_t(n_obs), 3);
+    for (size_t i = 0; i < n_obs; ++i) obs.row(int64_t(i)) = seen[i * seen.size() / n_obs].transpose();
+    geom::Pose start = gt;
+    start.R = Eigen::AngleAxisd(20 * 3.14159265358979 / 180, Eigen::Vector3d(1, 2, 3).normalized()) * gt.R;
+    start.t += Eigen::Vector3d(10, -8, 8);
+    const geom::DepthImage di{depth.data(), K};
+    const geom::RefineOptions ro;  // the defaults --refine turns runs
+    auto build = std::chrono::steady_clock::now();
+    const geom::ClosestPointGrid grid = geom::ClosestPointGrid::for_refine(tree, info, ro);
+    const double build_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - build).count();
+    auto time = [&](const geom::ClosestPointGrid* g, std::vector<double>* ms) {
+        for (int r = 0; r < reps + 1; ++r) {
+            const auto t0 = std::chrono::steady_clock::now();
+            const geom::RefineResult rr = geom::refine_pose(tree, info, obs, start, ro, &di, &normals, g);
+            const double dt = std::chrono::duration<double, std::milli>(
+                                  std::chrono::steady_clock::now() - t0).count();
+            G2L_CHECK(geom::rotation_error_deg(rr.pose.R, gt.R) < 2,
+                      "bench_refine: the refinement missed the pose (",
+                      geom::rotation_error_deg(rr.pose.R, gt.R), " deg)");
+            if (r >= 1) ms->push_back(dt);
+        }
+        std::sort(ms->begin(), ms->end());
+    };
+    std::vector<double> fast, exact;
+    time(&grid, &fast);
+    time(nullptr, &exact);
+    const double p90 = fast[std::min(fast.size() - 1, size_t(std::ceil(0.9 * double(fast.size()))) - 1)];
+    const std::string what = "refine_pose, turns, " + std::to_string(obs.rows()) +
+                             " observed points of a " + std::to_string(model.rows()) +
+                             "-point box, " + std::to_string(reps) + " runs";
+    return {{"refine_ms", fast[fast.size() / 2], "ms", what + " (closest-point grid)"},
+            {"refine_ms_p90", p90, "ms", what + " (closest-point grid)"},
+            {"refine_tree_ms", exact[exact.size() / 2], "ms", what + " (k-d tree only)"},
+            {"refine_grid_build_ms", build_ms, "ms",
+             "ClosestPointGrid::for_refine, " + std::to_string(grid.size()) + " cells of " +
+                 std::to_string(grid.cell_mm()) + " mm (once per model)"}};
 }
 
 double peak_rss_mb() {

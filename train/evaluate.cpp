@@ -78,6 +78,7 @@ struct ObjGeom {
     std::vector<geom::SymmetryTransform> syms;
     std::unique_ptr<geom::ModelKdTree> tree;  // mesh vertices + surface samples (label rule)
     geom::Points normals;                     // the tree points' normals (refinement only)
+    geom::ClosestPointGrid grid;              // nearest tree point per cell (refinement only)
 };
 
 // IoU of `taken` with the flagged rows of `gt`, both restricted to the rows in `seen` (each
@@ -158,7 +159,10 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                 g.pts = p;
                 g.tree = std::make_unique<geom::ModelKdTree>(geom::ModelKdTree::from_mesh(mesh));
                 g.syms = geom::geometric_symmetries(*g.tree, om.info);
-                if (opt.refine != "none") g.normals = g.tree->normals();
+                if (opt.refine != "none") {
+                    g.normals = g.tree->normals();
+                    g.grid = geom::ClosestPointGrid::for_refine(*g.tree, om.info);
+                }
                 model_geom[inst.obj_id] = std::move(g);
             }
             if (!meta.count(inst.obj_id))
@@ -255,7 +259,7 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                     di.K.height = h;
                     const geom::RefineResult rr = geom::refine_pose(
                         *model_geom[inst.obj_id].tree, om.info, obs, est.pose, ro, &di,
-                        &model_geom[inst.obj_id].normals);
+                        &model_geom[inst.obj_id].normals, &model_geom[inst.obj_id].grid);
                     est.pose = rr.pose;
                     res.refine_hyp = rr.hypothesis;
                     res.refine_cluster = rr.cluster;

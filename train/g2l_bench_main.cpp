@@ -36,6 +36,10 @@ int main(int argc, char** argv) {
     app.add_option("--detector-reps", det_reps, "timed 2D-detector runs on a 640 x 480 frame "
                                                 "(0 = skip)")
         ->check(CLI::Range(0, 100000));
+    int refine_reps = 9;
+    app.add_option("--refine-reps", refine_reps, "timed depth refinements (--refine turns) of one "
+                                                  "object (0 = skip)")
+        ->check(CLI::Range(0, 100000));
     app.add_flag("--pose-only", pose_only, "only the batch-1 pose figures (and peak RSS)");
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
@@ -61,6 +65,10 @@ int main(int argc, char** argv) {
                 const auto df = g2l::train::bench_detector(quick ? 2 : det_reps, 16, 2, mirror);
                 figs.insert(figs.end(), df.begin(), df.end());
             }
+        }
+        if (refine_reps > 0) {
+            const auto rf = g2l::train::bench_refine(quick ? 2 : refine_reps);
+            figs.insert(figs.end(), rf.begin(), rf.end());
         }
         if (train_reps > 0 && !pose_only) {
             // The setting: paper architecture, batch 8, 1500 -> 1000 points.

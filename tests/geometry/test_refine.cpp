@@ -5,6 +5,7 @@
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -335,4 +336,97 @@ TEST_CASE("refine_pose: a neighbouring object's points form their own cluster an
     opt.cluster_min_share = 0.25;
     opt.cluster_frac = -1;
     CHECK_THROWS_WITH(refine_pose(tree, info, obs, gt, opt), Contains("cluster_frac -1"));
+}
+
+TEST_CASE("ClosestPointGrid: near the true nearest point, outside is beyond the margin, bad input",
+          "[geometry][refine]") {
+    const Points model = bumped_box();
+    const ModelKdTree tree(model);
+    const ModelInfo info = compute_model_info(model);
+    const ClosestPointGrid grid = ClosestPointGrid::for_refine(tree, info);
+    // diameter / 80 (1 to 4 mm), margin = the default inlier cap (0.1 of the diameter).
+    CHECK(grid.cell_mm() == Approx(std::clamp(info.diameter / 80, 1.0, 4.0)));
+    CHECK(grid.margin_mm() == Approx(0.1 * info.diameter));
+    CHECK(grid.tree_points() == tree.size());
+    const double lim = std::sqrt(3.0) * grid.cell_mm();
+    // Points around the box (a deterministic lattice, some beyond the grid): each lookup's model
+    // point is within sqrt(3) cells of the exact nearest distance; -1 only beyond the margin.
+    int inside = 0, outside = 0;
+    double worst = 0;
+    for (float x = -100; x <= 220; x += 7.3f)
+        for (float y = -60; y <= 120; y += 6.1f)
+            for (float z = -60; z <= 110; z += 5.7f) {
+                const Eigen::Vector3f q(x, y, z);
+                const float exact = tree.nearest(q);
+                const int k = grid.lookup(q);
+                if (k < 0) {
+                    ++outside;
+                    CHECK(exact > grid.margin_mm() - 1e-3);
+                    continue;
+                }
+                ++inside;
+                REQUIRE(k < tree.size());
+                const double got = (q - tree.points().row(k).transpose()).norm();
+                CHECK(got >= exact - 1e-3);
+                worst = std::max(worst, got - exact);
+            }
+    CHECK(inside > 1000);
+    CHECK(outside > 1000);
+    CHECK(worst <= lim);
+    CHECK(worst > 0);  // the grid is an approximation, and the test can tell
+    CHECK(grid.lookup(Eigen::Vector3f(std::nanf(""), 0, 0)) == -1);
+    // Bad input names the value.
+    CHECK_THROWS_WITH(ClosestPointGrid(tree, 0, 5), Contains("cell_mm must be > 0, got 0"));
+    CHECK_THROWS_WITH(ClosestPointGrid(tree, 2, -1), Contains("margin_mm must be >= 0, got -1"));
+    CHECK_THROWS_WITH(ClosestPointGrid(tree, 0.01, 5), Contains("exceed the limit"));
+    ModelInfo no_diam = info;
+    no_diam.diameter = 0;
+    CHECK_THROWS_WITH(ClosestPointGrid::for_refine(tree, no_diam), Contains("diameter must be > 0"));
+}
+
+TEST_CASE("refine_pose: with the grid, the same poses as with the k-d tree alone",
+          "[geometry][refine]") {
+    const Points model = bumped_box();
+    const ModelKdTree tree(model);
+    const ModelInfo info = compute_model_info(model);
+    const Points normals = tree.normals();
+    const ClosestPointGrid grid = ClosestPointGrid::for_refine(tree, info);
+    const Pose gt = gt_pose();
+    const Points obs = transform(model, gt);
+    // Perturbed (ICP from the start) and turned over (the turned starts must win).
+    Pose start = gt;
+    start.R = Eigen::AngleAxisd(12 * M_PI / 180, Eigen::Vector3d(1, 2, 3).normalized()) * gt.R;
+    start.t += Eigen::Vector3d(10, -8, 8);
+    const Eigen::Vector3d c = info.min + 0.5 * info.size;
+    const Eigen::Matrix3d T = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    Pose flipped;
+    flipped.R = gt.R * T;
+    flipped.t = gt.R * (c - T * c) + gt.t;
+    for (const Pose& init : {start, flipped}) {
+        const RefineResult exact = refine_pose(tree, info, obs, init, {}, nullptr, &normals);
+        const RefineResult fast = refine_pose(tree, info, obs, init, {}, nullptr, &normals, &grid);
+        CHECK(rotation_error_deg(fast.pose.R, gt.R) < 0.5);
+        CHECK((fast.pose.t - gt.t).norm() < 0.5);
+        CHECK(rotation_error_deg(fast.pose.R, exact.pose.R) < 0.5);
+        CHECK(fast.hypothesis == exact.hypothesis);
+        // The exact fit is reported (of the observed points refine_pose strides to max_points).
+        CHECK(fast.fit_mm == Approx(fit_error(tree, obs, fast.pose, 0.1 * info.diameter)).margin(1e-3));
+        CHECK(fast.fit_mm < 0.5);
+    }
+    CHECK(refine_pose(tree, info, obs, flipped, {}, nullptr, &normals, &grid).hypothesis > 0);
+    // An empty grid is no grid; one with a margin below the inlier cap is refused.
+    const ClosestPointGrid none;
+    CHECK(rotation_error_deg(refine_pose(tree, info, obs, start, {}, nullptr, &normals, &none).pose.R,
+                             gt.R) < 0.5);
+    const ClosestPointGrid thin(tree, 2.0, 1.0);
+    CHECK_THROWS_WITH(refine_pose(tree, info, obs, start, {}, nullptr, &normals, &thin),
+                      Contains("below the inlier cap"));
+    const ModelKdTree other(bumped_box().topRows(500));
+    const ClosestPointGrid foreign = ClosestPointGrid::for_refine(other, info);
+    CHECK_THROWS_WITH(refine_pose(tree, info, obs, start, {}, nullptr, &normals, &foreign),
+                      Contains("built over a tree of 500 points"));
+    RefineOptions opt;
+    opt.polish_iterations = -1;
+    CHECK_THROWS_WITH(refine_pose(tree, info, obs, start, opt, nullptr, &normals, &grid),
+                      Contains("polish_iterations must be >= 0, got -1"));
 }

@@ -127,11 +127,16 @@ expect 0 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --rg
 [ -s "$T/vis.png" ] || fail "g2l_infer --vis wrote no image"
 [ "$(grep -c '"status": "ok"' "$T/poses.json")" -eq 2 ] || fail "g2l_infer: expected 2 poses in $(cat "$T/poses.json")"
 grep -q '"status": "box outside image"' "$T/poses.json" || fail "the box right of the image got no status"
-# --refine turns with the fixture meshes: both poses refined (a fit each); without --meshes: an error.
+# --meshes alone refines (--refine turns is the default with meshes): both poses get a fit;
+# --refine none keeps the networks' poses; --refine without --meshes: an error.
 expect 0 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" \
-    --camera "$F/scene_camera.json" --image-id 1 --boxes "$T/dets.json" --refine turns \
+    --camera "$F/scene_camera.json" --image-id 1 --boxes "$T/dets.json" \
     --meshes "$S/tests/data/ycbv_mini/models" --json "$T/refined.json"
-[ "$(grep -c '"fit_mm"' "$T/refined.json")" -eq 2 ] || fail "g2l_infer --refine: expected 2 fits in $(cat "$T/refined.json")"
+[ "$(grep -c '"fit_mm"' "$T/refined.json")" -eq 2 ] || fail "g2l_infer --meshes: expected 2 fits in $(cat "$T/refined.json")"
+expect 0 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" \
+    --camera "$F/scene_camera.json" --image-id 1 --boxes "$T/dets.json" --refine none \
+    --meshes "$S/tests/data/ycbv_mini/models" --json "$T/unrefined.json"
+[ "$(grep -c '"fit_mm"' "$T/unrefined.json")" -eq 0 ] || fail "g2l_infer --refine none: no fit expected in $(cat "$T/unrefined.json")"
 expect 2 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" \
     --camera "$F/scene_camera.json" --image-id 1 --boxes "$T/dets.json" --refine icp
 has "--refine icp needs --meshes"
@@ -163,16 +168,21 @@ grep -q "^0,1,14,0.700000," "$T/res.csv" || fail "BOP CSV: object 14 should take
 [ -s "$T/vis/000000_1.png" ] && [ -s "$T/vis/accuracy_obj_8.png" ] || fail "g2l_eval --vis images"
 # --oracle seg+t: the GT translation is the estimate's (translation error ~0 on every instance).
 expect 0 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
-    --oracle seg+t --json "$T/oracle.json"
+    --oracle seg+t --refine none --json "$T/oracle.json"
 grep -q "Oracle inputs (seg+t)" "$T/out" || fail "g2l_eval --oracle: the table names the oracle"
 grep -q '"oracle": "seg+t"' "$T/oracle.json" || fail "g2l_eval --oracle: the JSON names the oracle"
 grep -q '"seg_iou": 1.0' "$T/oracle.json" || fail "g2l_eval --oracle seg+t: seg IoU 1"
-# --refine turns: ICP against the fixture meshes; the table and the JSON name it.
+# The default refinement (turns): ICP against the fixture meshes; the table and the JSON name
+# it. --refine none: the networks alone, no fit.
 expect 0 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
-    --refine turns --json "$T/refine.json" --instances "$T/refine.jsonl"
+    --json "$T/refine.json" --instances "$T/refine.jsonl"
 grep -q "Depth refinement (turns)" "$T/out" || fail "g2l_eval --refine: the table names it"
 grep -q '"refine": "turns"' "$T/refine.json" || fail "g2l_eval --refine: the JSON names it"
 [ "$(grep -c '"fit_mm"' "$T/refine.jsonl")" -eq 4 ] || fail "g2l_eval --refine: a fit per instance"
+expect 0 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
+    --refine none --json "$T/norefine.json" --instances "$T/norefine.jsonl"
+grep -q '"refine": "none"' "$T/norefine.json" || fail "g2l_eval --refine none: the JSON names it"
+[ "$(grep -c '"fit_mm"' "$T/norefine.jsonl")" -eq 0 ] || fail "g2l_eval --refine none: no fit"
 expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --root r --refine fast
 has "fast"
 echo "cli: every check passed"

@@ -14,6 +14,7 @@
 #include "core/autograd.h"
 #include "core/error.h"
 #include "core/rng.h"
+#include "data/render_primitives.h"
 #include "geometry/labels.h"
 #include "geometry/metrics.h"
 #include "geometry/model_info.h"
@@ -256,30 +257,18 @@ std::vector<BenchFigure> bench_detector(int reps, int width, int downscale, bool
 
 std::vector<BenchFigure> bench_refine(int reps) {
     G2L_CHECK(reps >= 1, "bench_refine: reps must be >= 1");
-    // The model: a box's surface with a bump on one corner of its top face, 2 mm apart.
-    std::vector<Eigen::Vector3f> pts;
+    // The model: a 150 x 90 x 60 mm box with a 30 mm cube on one corner of its top face (no
+    // turn maps it onto itself), its vertices and surface samples 2 mm apart (as for a mesh).
+    const geom::Mesh body = data::make_box(150, 90, 60), bump = data::make_box(30, 30, 30);
+    geom::Mesh mesh;
+    mesh.vertices.resize(body.vertices.rows() + bump.vertices.rows(), 3);
+    mesh.vertices << body.vertices,
+        bump.vertices.rowwise() + Eigen::RowVector3f(60, 30, 45);
+    mesh.faces.resize(body.faces.rows() + bump.faces.rows(), 3);
+    mesh.faces << body.faces, bump.faces.array() + int32_t(body.vertices.rows());
+    const geom::ModelKdTree tree = geom::ModelKdTree::from_mesh(mesh, 2.0);
+    const geom::Points& model = tree.points();
     const Eigen::Vector3f h(75, 45, 30);
-    const float step = 2;
-    for (int axis = 0; axis < 3; ++axis) {
-        const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-        for (float a = -h[u]; a <= h[u] + 1e-3f; a += step)
-            for (float b = -h[v]; b <= h[v] + 1e-3f; b += step)
-                for (float sgn : {-1.f, 1.f}) {
-                    Eigen::Vector3f p;
-                    p[axis] = sgn * h[axis];
-                    p[u] = a;
-                    p[v] = b;
-                    pts.push_back(p);
-                }
-    }
-    for (float a = 0; a <= 30; a += step)
-        for (float b = 0; b <= 30; b += step)
-            for (float c = 0; c <= 30; c += step)
-                if (a == 0 || b == 0 || c == 30 || a >= 29 || b >= 29)
-                    pts.push_back(Eigen::Vector3f(h.x() - 30 + a, h.y() - 30 + b, h.z() + c));
-    geom::Points model(int64_t(pts.size()), 3);
-    for (size_t i = 0; i < pts.size(); ++i) model.row(int64_t(i)) = pts[i].transpose();
-    const geom::ModelKdTree tree(model);
     const geom::Points normals = tree.normals();
     const geom::ModelInfo info = geom::compute_model_info(model);
     // The scene: the box standing on a table plane, seen from 800 mm and 40 degrees above.

@@ -55,6 +55,7 @@ const char* to_string(Refinement r) {
         case Refinement::none: return "none";
         case Refinement::icp: return "icp";
         case Refinement::turns: return "turns";
+        case Refinement::automatic: return "automatic";
     }
     return "unknown refinement";
 }
@@ -99,10 +100,13 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
               "PoseEstimator: min_detection_score must be in [0, 1], got ",
               options.min_detection_score);
     G2L_CHECK(options.refine == Refinement::none || options.refine == Refinement::icp ||
-                  options.refine == Refinement::turns,
-              "PoseEstimator: refine must be none, icp or turns, got ", int(options.refine));
-    G2L_CHECK(options.refine == Refinement::none || !options.meshes.empty(),
-              "PoseEstimator: refine = ", to_string(options.refine),
+                  options.refine == Refinement::turns || options.refine == Refinement::automatic,
+              "PoseEstimator: refine must be none, icp, turns or automatic, got ",
+              int(options.refine));
+    if (options.refine == Refinement::automatic)  // turns with meshes, none without
+        m.options.refine = options.meshes.empty() ? Refinement::none : Refinement::turns;
+    G2L_CHECK(m.options.refine == Refinement::none || !options.meshes.empty(),
+              "PoseEstimator: refine = ", to_string(m.options.refine),
               " needs EstimatorOptions::meshes (the folder of the objects' obj_NNNNNN.ply meshes)");
     m.model = nn::load_model(model_path);
     if (!options.detector.empty())
@@ -118,7 +122,7 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
                 m.model.objects[id] = {infos.at(id).diameter, infos.at(id).symmetric};
         }
     }
-    if (options.refine != Refinement::none) {
+    if (m.options.refine != Refinement::none) {
         // The meshes of the model's objects found in the folder (an object without one keeps
         // the networks' pose: ObjectPose::refined tells).
         std::error_code ec;

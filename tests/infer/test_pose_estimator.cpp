@@ -375,6 +375,24 @@ TEST_CASE("PoseEstimator: depth refinement against the meshes, and its option er
         err_after += (t1 - inst.pose.t).norm();
     }
     CHECK(err_after < err_before);
+    // The default (automatic) refines with meshes — the same poses as turns — and `plain`
+    // above (no meshes) did not; `none` with meshes keeps the networks' poses.
+    g2l::EstimatorOptions auto_opt;
+    CHECK(auto_opt.refine == g2l::Refinement::automatic);
+    auto_opt.meshes = opt.meshes;
+    const auto autod = g2l::PoseEstimator(kModel, auto_opt).estimate(view_of(f), boxes);
+    g2l::EstimatorOptions none_opt;
+    none_opt.meshes = opt.meshes;
+    none_opt.refine = g2l::Refinement::none;
+    const auto kept = g2l::PoseEstimator(kModel, none_opt).estimate(view_of(f), boxes);
+    for (size_t b = 0; b < boxes.size(); ++b) {
+        CHECK(autod[b].refined);
+        CHECK(autod[b].R == after[b].R);
+        CHECK(autod[b].t == after[b].t);
+        CHECK(!kept[b].refined);
+        CHECK(kept[b].R == before[b].R);
+        CHECK(kept[b].t == before[b].t);
+    }
     // An object of the model without a mesh in the folder keeps the networks' pose.
     g2l::ObjectBox other = boxes[0];
     other.obj_id = 5;
@@ -390,4 +408,7 @@ TEST_CASE("PoseEstimator: depth refinement against the meshes, and its option er
     bad.meshes = g2l::testing::fixture_dir();
     CHECK_THROWS_WITH(g2l::PoseEstimator(kModel, bad), Contains("has no obj_NNNNNN.ply mesh"));
     CHECK(std::string(g2l::to_string(g2l::Refinement::turns)) == "turns");
+    CHECK(std::string(g2l::to_string(g2l::Refinement::automatic)) == "automatic");
+    bad.refine = static_cast<g2l::Refinement>(7);
+    CHECK_THROWS_WITH(g2l::PoseEstimator(kModel, bad), Contains("refine must be none, icp, turns or automatic, got 7"));
 }

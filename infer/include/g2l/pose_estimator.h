@@ -118,11 +118,13 @@ enum class Refinement {
     /// axis permutations, 45-degree axis turns); the start that fits the depth best (object
     /// points close to the mesh, no mesh point in front of the measured surface) wins when it
     /// fits clearly better than the networks' own. Fixes most of the flips a depth-only network
-    /// makes (a box turned over, a mug's handle side); ~50-300 ms per box on one core.
-    turns
+    /// makes (a box turned over, a mug's handle side); ~30-40 ms per box on 2 cores.
+    turns,
+    /// The default: `turns` when EstimatorOptions::meshes is given, `none` without.
+    automatic
 };
 
-/// "none", "icp", "turns".
+/// "none", "icp", "turns", "automatic".
 G2L_API const char* to_string(Refinement refine);
 
 /// Options of a PoseEstimator; the defaults reproduce the settings the model was trained with.
@@ -142,7 +144,9 @@ struct EstimatorOptions {
     /// class-probability maps are averaged (two network passes; on the real LM-O images mean
     /// recall 45.9 -> 47.7, docs/results.md)
     bool detector_mirror = false;
-    Refinement refine = Refinement::none;
+    /// Depth refinement: by default (`automatic`) the poses are refined (`turns`) when `meshes`
+    /// is given; `none` keeps the networks' poses even then.
+    Refinement refine = Refinement::automatic;
     /// The folder of the objects' meshes, named as BOP names them (obj_000005.ply; mm): needed
     /// by `refine`. The constructor loads the mesh of every object of the model found there
     /// (at least one); an object without a mesh keeps the networks' pose (ObjectPose::refined).
@@ -150,7 +154,7 @@ struct EstimatorOptions {
 };
 
 /// G2L-Net's pose pipeline for the objects of one trained model.
-/// The constructor throws std::runtime_error also when `refine` is set without `meshes`, when
+/// The constructor throws std::runtime_error also when `refine` is icp or turns without `meshes`, when
 /// that folder has no mesh of the model's objects, or a mesh is unreadable (naming the file).
 class G2L_API PoseEstimator {
 public:

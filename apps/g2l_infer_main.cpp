@@ -117,8 +117,7 @@ int main(int argc, char** argv) {
                              "g2l_infer --help)\n");
         return g2l::cli::kUsageError;
     }
-    if (refine.empty()) refine = meshes.empty() ? "none" : "turns";
-    if (refine != "none" && meshes.empty()) {
+    if (!refine.empty() && refine != "none" && meshes.empty()) {
         std::fprintf(stderr, "g2l_infer: --refine %s needs --meshes FOLDER (the objects' "
                              "obj_NNNNNN.ply meshes)\n", refine.c_str());
         return g2l::cli::kUsageError;
@@ -167,7 +166,8 @@ int main(int argc, char** argv) {
         opt.models_info = models_info;
         opt.detector = detector_path;
         opt.detector_mirror = det_mirror;
-        opt.refine = refine == "icp"     ? g2l::Refinement::icp
+        opt.refine = refine.empty()      ? g2l::Refinement::automatic  // turns with --meshes
+                     : refine == "icp"   ? g2l::Refinement::icp
                      : refine == "turns" ? g2l::Refinement::turns
                                          : g2l::Refinement::none;
         opt.meshes = meshes;

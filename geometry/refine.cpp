@@ -79,10 +79,9 @@ inline float nearest_of(const ModelKdTree& tree, const ClosestPointGrid* grid,
     return (x - tree.points().row(k).transpose()).norm();
 }
 
-// fit_error with the grid's nearest points when `grid` is set.
+// fit_error, with the grid's nearest points when `grid` is set.
 double fit_with(const ModelKdTree& tree, const ClosestPointGrid* grid, const Points& obs,
                 const Pose& pose, double cap_mm) {
-    if (!grid) return fit_error(tree, obs, pose, cap_mm);
     if (obs.rows() == 0) return cap_mm;
     const Eigen::Matrix3f Rt = pose.R.transpose().cast<float>();
     const Eigen::Vector3f t = pose.t.cast<float>();
@@ -242,15 +241,7 @@ bool fit_plane(const DepthImage& dimg, int x0, int y0, int x1, int y1, double to
 }
 
 double fit_error(const ModelKdTree& tree, const Points& obs, const Pose& pose, double cap_mm) {
-    if (obs.rows() == 0) return cap_mm;
-    const Eigen::Matrix3f Rt = pose.R.transpose().cast<float>();
-    const Eigen::Vector3f t = pose.t.cast<float>();
-    double sum = 0;
-    for (int64_t i = 0; i < obs.rows(); ++i) {
-        const Eigen::Vector3f q = obs.row(i).transpose();
-        sum += std::min<double>(cap_mm, tree.nearest(Rt * (q - t)));
-    }
-    return sum / double(obs.rows());
+    return fit_with(tree, nullptr, obs, pose, cap_mm);
 }
 
 ClosestPointGrid::ClosestPointGrid(const ModelKdTree& tree, double cell_mm, double margin_mm,
@@ -352,14 +343,14 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
               ", plane_min_inliers ", opt.plane_min_inliers, ")");
     G2L_CHECK(opt.polish_iterations >= 0, "refine_pose: polish_iterations must be >= 0, got ",
               opt.polish_iterations);
-    G2L_CHECK(!grid || grid->empty() || grid->margin_mm() >= opt.inlier_frac * info.diameter * (1 - 1e-9),
+    if (grid && grid->empty()) grid = nullptr;  // an empty grid is no grid
+    G2L_CHECK(!grid || grid->margin_mm() >= opt.inlier_frac * info.diameter * (1 - 1e-9),
               "refine_pose: the grid's margin (", grid ? grid->margin_mm() : 0.0,
               " mm) is below the inlier cap (", opt.inlier_frac * info.diameter,
               " mm): build it with ClosestPointGrid::for_refine");
-    G2L_CHECK(!grid || grid->empty() || grid->tree_points() == tree.size(),
+    G2L_CHECK(!grid || grid->tree_points() == tree.size(),
               "refine_pose: the grid was built over a tree of ", grid ? grid->tree_points() : 0,
               " points, this tree has ", tree.size());
-    if (grid && grid->empty()) grid = nullptr;
     RefineResult base;
     base.observed = int(n_all);
     // The support plane, found around the observed points' image box.

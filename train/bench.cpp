@@ -43,6 +43,11 @@ double median_seconds(const std::function<void()>& fn, int reps, int warmup) {
 
 namespace {
 
+// The 90th percentile of sorted timings (the smallest value >= 90% of them).
+double p90_of(const std::vector<double>& sorted) {
+    return sorted[std::min(sorted.size() - 1, size_t(std::ceil(0.9 * double(sorted.size()))) - 1)];
+}
+
 // One shared-MLP layer x [B, Cin, N] -> [B, Cout, N]: forward-only and forward+backward figures.
 void bench_shared_mlp(std::vector<BenchFigure>& out, const std::string& key, int64_t B,
                       int64_t Cin, int64_t N, int64_t Cout, int reps) {
@@ -216,7 +221,7 @@ std::vector<BenchFigure> bench_pose(const std::string& prefix, int reps, double 
     for (auto& v : st) std::sort(v.begin(), v.end());
     std::sort(ms.begin(), ms.end());
     const double med = ms[ms.size() / 2];
-    const double p90 = ms[std::min(ms.size() - 1, size_t(std::ceil(0.9 * double(ms.size()))) - 1)];
+    const double p90 = p90_of(ms);
     const std::string what = std::string(engine ? "PoseEngine" : "eval-mode graph") + ", batch-1 pose, width " + std::to_string(width).substr(0, 4) + ", " +
                              std::to_string(crop_points) + " -> " + std::to_string(object_points) +
                              " points, " + std::to_string(reps) + " runs";
@@ -246,7 +251,7 @@ std::vector<BenchFigure> bench_detector(int reps, int width, int downscale, bool
         if (r >= 3) ms.push_back(dt);
     }
     std::sort(ms.begin(), ms.end());
-    const double p90 = ms[std::min(ms.size() - 1, size_t(std::ceil(0.9 * double(ms.size()))) - 1)];
+    const double p90 = p90_of(ms);
     const std::string what = "2D detector on a 640 x 480 frame (downscale " +
                              std::to_string(downscale) + ", width " + std::to_string(width) +
                              ", 8 classes" + (mirror ? ", mirrored second pass" : "") + "), " +
@@ -268,7 +273,6 @@ std::vector<BenchFigure> bench_refine(int reps) {
     mesh.faces << body.faces, bump.faces.array() + int32_t(body.vertices.rows());
     const geom::ModelKdTree tree = geom::ModelKdTree::from_mesh(mesh, 2.0);
     const geom::Points& model = tree.points();
-    const Eigen::Vector3f h(75, 45, 30);
     const geom::Points normals = tree.normals();
     const geom::ModelInfo info = geom::compute_model_info(model);
     // The scene: the box standing on a table plane, seen from 800 mm and 40 degrees above.
@@ -284,7 +288,7 @@ std::vector<BenchFigure> bench_refine(int reps) {
     gt.R = tilt * Eigen::AngleAxisd(0.6, Eigen::Vector3d::UnitZ()).toRotationMatrix();
     gt.t = Eigen::Vector3d(10, -5, 800);
     const Eigen::Vector3d up = gt.R.col(2);  // the table's normal (towards the camera side)
-    const Eigen::Vector3d on_table = gt.t - h.z() * up;
+    const Eigen::Vector3d on_table = gt.t - 30.0 * up;  // the box's bottom face, 30 mm below
     std::vector<float> depth(size_t(K.width) * size_t(K.height), 0.f);
     for (int v = 0; v < K.height; ++v)
         for (int u = 0; u < K.width; ++u) {
@@ -338,7 +342,7 @@ std::vector<BenchFigure> bench_refine(int reps) {
     std::vector<double> fast, exact;
     time(&grid, &fast);
     time(nullptr, &exact);
-    const double p90 = fast[std::min(fast.size() - 1, size_t(std::ceil(0.9 * double(fast.size()))) - 1)];
+    const double p90 = p90_of(fast);
     const std::string what = "refine_pose, turns, " + std::to_string(obs.rows()) +
                              " observed points of a " + std::to_string(model.rows()) +
                              "-point box, " + std::to_string(reps) + " runs";

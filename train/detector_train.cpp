@@ -130,7 +130,8 @@ json to_json(const DetectorTrainConfig& c) {
                   {"clutter_prob", c.clutter_prob},
                   {"occluder_prob", c.occluder_prob},
                   {"backgrounds", c.backgrounds},
-                  {"photo_prob", c.photo_prob}}},
+                  {"photo_prob", c.photo_prob},
+                  {"object_tone_prob", c.object_tone_prob}}},
                 {"model", {{"width", c.width}, {"init", c.init}}},
                 {"loss", {{"heat", c.w_heat}, {"size", c.w_size}, {"offset", c.w_offset}}},
                 {"optim", {{"lr", c.lr}}},
@@ -165,6 +166,7 @@ void validate(const DetectorTrainConfig& c, const std::string& where) {
     frac("augment.clutter_prob", c.clutter_prob);
     frac("augment.occluder_prob", c.occluder_prob);
     frac("augment.photo_prob", c.photo_prob);
+    frac("augment.object_tone_prob", c.object_tone_prob);
     G2L_CHECK(c.photo_prob == 0 || !c.backgrounds.empty(), where,
               ": 'augment.photo_prob' is ", c.photo_prob, " but 'augment.backgrounds' lists no "
               "directory of photographs");
@@ -239,6 +241,7 @@ DetectorTrainConfig parse_detector_config(const std::string& json_text, const st
         ka.num("occluder_prob", c.occluder_prob);
         ka.texts("backgrounds", c.backgrounds);
         ka.num("photo_prob", c.photo_prob);
+        ka.num("object_tone_prob", c.object_tone_prob);
     });
     section("model", [&](Keys& km) {
         km.num("width", c.width);
@@ -598,6 +601,52 @@ std::string detector_eval_table(const DetectorEvalResult& r) {
 }
 
 // ---------------------------------------------------------------- training
+void object_tone(std::vector<uint8_t>& rgb, const std::vector<uint16_t>& groups, int w, int h,
+                 double prob, Rng& rng) {
+    G2L_CHECK(w > 0 && h > 0, "object_tone: bad image size ", w, " x ", h);
+    const size_t n = size_t(w) * size_t(h);
+    G2L_CHECK(rgb.size() == n * 3 && groups.size() == n, "object_tone: ", rgb.size(),
+              " colour values and ", groups.size(), " group ids for a ", w, " x ", h, " image");
+    G2L_CHECK(std::isfinite(prob) && prob >= 0 && prob <= 1, "object_tone: prob must be in [0, 1], got ",
+              prob);
+    if (prob == 0) return;
+    // Mean colour of every group present, in one pass.
+    std::map<uint16_t, std::array<double, 4>> mean;
+    for (size_t i = 0; i < n; ++i) {
+        if (groups[i] == 0) continue;
+        auto& m = mean[groups[i]];
+        for (int k = 0; k < 3; ++k) m[size_t(k)] += rgb[i * 3 + size_t(k)];
+        m[3] += 1;
+    }
+    struct Tone {
+        float mean[3], contrast, gain[3], sat;
+    };
+    std::map<uint16_t, Tone> tone;  // the groups drawn to change, in id order (reproducible)
+    for (auto& [g, m] : mean) {
+        if (rng.uniform() >= prob) continue;
+        Tone t;
+        for (int k = 0; k < 3; ++k) t.mean[k] = float(m[size_t(k)] / m[3]);
+        t.contrast = float(rng.uniform(0.4, 1.0));
+        const double bright = rng.uniform(0.5, 1.2);
+        for (float& gk : t.gain) gk = float(bright * rng.uniform(0.85, 1.15));
+        t.sat = float(rng.uniform(0.5, 1.3));
+        tone[g] = t;
+    }
+    if (tone.empty()) return;
+    for (size_t i = 0; i < n; ++i) {
+        if (groups[i] == 0) continue;
+        const auto it = tone.find(groups[i]);
+        if (it == tone.end()) continue;
+        const Tone& t = it->second;
+        float v[3];
+        for (int k = 0; k < 3; ++k)
+            v[k] = (t.mean[k] + t.contrast * (float(rgb[i * 3 + size_t(k)]) - t.mean[k])) * t.gain[k];
+        const float lum = (v[0] + v[1] + v[2]) / 3;
+        for (int k = 0; k < 3; ++k)
+            rgb[i * 3 + size_t(k)] = uint8_t(std::clamp(lum + t.sat * (v[k] - lum) + 0.5f, 0.f, 255.f));
+    }
+}
+
 namespace {
 
 struct DetSample {
@@ -917,6 +966,15 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
             DetSample& d = batch[size_t(b)];
             d.rgb = fr.rgb;
             Rng rng(mix_seed(mix_seed(cfg.seed, uint64_t(s)), uint64_t(b) + 17));
+            if (cfg.object_tone_prob > 0) {  // each target its own group, the distractors one
+                const uint16_t dgroup = uint16_t(fr.instances.size() + 1);
+                std::vector<uint16_t> groups(fr.mask);
+                for (size_t i = 0; i < groups.size(); ++i)
+                    if (groups[i] == 0 && !fr.distractor_mask.empty() && fr.distractor_mask[i])
+                        groups[i] = dgroup;
+                Rng trng(mix_seed(mix_seed(cfg.seed, uint64_t(s)), uint64_t(b) + 0x70E));
+                object_tone(d.rgb, groups, W, H, cfg.object_tone_prob, trng);
+            }
             // The pixels a new background must leave alone: targets' and distractors'.
             auto keep = [&fr] {
                 std::vector<uint8_t> k(fr.mask.size());

@@ -55,6 +55,12 @@ struct DetectorTrainConfig {
     /// scale, flip) replaces every pixel without an object, instead of the clutter texture.
     std::vector<std::string> backgrounds;
     double photo_prob = 0.0;
+    /// Per rendered object (each target; the distractors as one group), the probability of a
+    /// random tone: contrast towards its mean colour (x 0.4-1), brightness (x 0.5-1.2), a tint
+    /// (x 0.85-1.15 per channel) and saturation (x 0.5-1.3). The LINEMOD vertex colours were
+    /// captured under other light than the test photos (bright objects are ~0.55-0.75 as bright
+    /// there, dark ones unchanged); the image-wide colour_jitter cannot say "this object only".
+    double object_tone_prob = 0.0;
     // model
     int width = 16;
     std::string init;               ///< a detector export to start from (fine-tuning); "" = fresh
@@ -85,6 +91,12 @@ DetectorTrainConfig parse_detector_config(const std::string& json_text, const st
                                           const std::string& base_dir);
 /// Every key, defaults included; parse_detector_config of it gives the same config.
 std::string detector_config_to_json(const DetectorTrainConfig& cfg);
+
+/// The object_tone augmentation on an image (w x h x 3): `groups` holds a group per pixel (0 =
+/// background, left alone); each group, with probability `prob`, gets its own random tone (see
+/// DetectorTrainConfig::object_tone_prob). Throws on sizes that do not match.
+void object_tone(std::vector<uint8_t>& rgb, const std::vector<uint16_t>& groups, int w, int h,
+                 double prob, Rng& rng);
 
 /// A box of class `cls` in the detector's input pixels (top-left corner and size).
 struct DetBox {

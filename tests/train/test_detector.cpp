@@ -221,6 +221,8 @@ TEST_CASE("detector: bad configs, shapes and exports are named errors", "[detect
     REQUIRE_THROWS_WITH(parse(R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1]}, "optim": {"lr": -1}})"),
                         Contains("'optim.lr' must be > 0"));
     REQUIRE_THROWS_WITH(parse(R"({"task": "detector", "task": "detector"})"), Contains("duplicate"));
+    REQUIRE_THROWS_WITH(parse(R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1]}, "augment": {"object_tone_prob": 1.5}})"),
+                        Contains("'augment.object_tone_prob' must be in [0, 1], got 1.5"));
     REQUIRE_THROWS_WITH(parse(R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1]}, "augment": {"photo_prob": 0.5}})"),
                         Contains("'augment.photo_prob' is 0.5 but 'augment.backgrounds' lists no"));
     REQUIRE_THROWS_WITH(parse(R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1]}, "augment": {"backgrounds": "/bg"}})"),
@@ -258,6 +260,67 @@ TEST_CASE("detector: bad configs, shapes and exports are named errors", "[detect
                         Contains("downscale must be 1, 2 or 4"));
     REQUIRE_THROWS_WITH(nn::detector_input(rgb.data(), 0, 2, 1, nullptr, nullptr),
                         Contains("empty image"));
+}
+
+TEST_CASE("detector training: object_tone changes each object on its own, never the background",
+          "[detector]") {
+    // 8 x 2 image: group 1 = a grey object of two shades (100 and 200), group 2 = a flat red
+    // one, group 0 = background (a ramp that must come out unchanged).
+    const int w = 8, h = 2;
+    std::vector<uint16_t> groups = {1, 1, 1, 1, 2, 2, 0, 0, 1, 1, 1, 1, 2, 2, 0, 0};
+    std::vector<uint8_t> rgb(size_t(w * h * 3));
+    for (int i = 0; i < w * h; ++i)
+        for (int k = 0; k < 3; ++k) {
+            uint8_t v = uint8_t(10 * i + k);
+            if (groups[size_t(i)] == 1) v = (i % 2) ? 200 : 100;
+            if (groups[size_t(i)] == 2) v = k == 0 ? 180 : 40;
+            rgb[size_t(i * 3 + k)] = v;
+        }
+    Rng rng0(5);
+    std::vector<uint8_t> same = rgb;
+    train::object_tone(same, groups, w, h, 0.0, rng0);
+    REQUIRE(same == rgb);  // prob 0: nothing
+
+    int changed1 = 0, changed2 = 0;
+    for (uint64_t seed = 1; seed <= 200; ++seed) {
+        std::vector<uint8_t> out = rgb, again = rgb;
+        Rng r1(seed), r2(seed);
+        train::object_tone(out, groups, w, h, 1.0, r1);
+        train::object_tone(again, groups, w, h, 1.0, r2);
+        REQUIRE(out == again);  // the seed decides
+        double lum_lo = 0, lum_hi = 0;
+        for (int i = 0; i < w * h; ++i) {
+            const uint8_t* o = &out[size_t(i * 3)];
+            const uint8_t* in = &rgb[size_t(i * 3)];
+            if (groups[size_t(i)] == 0) {
+                REQUIRE((o[0] == in[0] && o[1] == in[1] && o[2] == in[2]));
+                continue;
+            }
+            if (groups[size_t(i)] == 1) ((i % 2) ? lum_hi : lum_lo) += (o[0] + o[1] + o[2]) / 3.0 / 4;
+            changed1 += groups[size_t(i)] == 1 && o[0] != in[0];
+            changed2 += groups[size_t(i)] == 2 && o[0] != in[0];
+        }
+        // The two shades keep their order; their gap shrinks to contrast (0.4-1) x brightness
+        // (0.5-1.2) x tint (0.85-1.15) of the 100 it was (+1 for rounding).
+        INFO("seed " << seed << ": shades " << lum_lo << " / " << lum_hi);
+        REQUIRE(lum_hi - lum_lo >= 0.4 * 0.5 * 0.85 * 100 - 1);
+        REQUIRE(lum_hi - lum_lo <= 1.0 * 1.2 * 1.15 * 100 + 1);
+        // The mean brightness of the grey object: 150 x 0.5-1.2 x 0.85-1.15.
+        const double mean = (lum_lo + lum_hi) / 2;
+        REQUIRE(mean >= 150 * 0.5 * 0.85 - 1);
+        REQUIRE(mean <= 150 * 1.2 * 1.15 + 1);
+    }
+    REQUIRE(changed1 > 0);
+    REQUIRE(changed2 > 0);
+
+    // Bad input is named.
+    Rng r(1);
+    std::vector<uint8_t> short_rgb(10);
+    REQUIRE_THROWS_WITH(train::object_tone(short_rgb, groups, w, h, 1.0, r),
+                        Contains("object_tone: 10 colour values and 16 group ids for a 8 x 2 image"));
+    REQUIRE_THROWS_WITH(train::object_tone(rgb, groups, w, h, 2.0, r),
+                        Contains("object_tone: prob must be in [0, 1], got 2"));
+    REQUIRE_THROWS_WITH(train::object_tone(rgb, groups, 0, h, 1.0, r), Contains("bad image size 0 x 2"));
 }
 
 TEST_CASE("detector: evaluation and g2l_eval's detector boxes run on real frames", "[detector]") {

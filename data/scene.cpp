@@ -120,6 +120,8 @@ void validate(const SceneConfig& c, const std::string& where) {
                   c.camera_elevation[1] <= 90,
               where, ": camera_elevation must be [min, max] with 0 < min <= max <= 90 degrees, got [",
               c.camera_elevation[0], ", ", c.camera_elevation[1], "]");
+    G2L_CHECK(std::isfinite(c.upright_prob) && c.upright_prob >= 0 && c.upright_prob <= 1, where,
+              ": upright_prob must be in [0, 1], got ", c.upright_prob);
     G2L_CHECK(c.camera_roll_max >= 0 && c.camera_roll_max <= 180, where,
               ": camera_roll_max must be in [0, 180] degrees, got ", c.camera_roll_max);
     G2L_CHECK(c.table_spread_mm >= 0 && std::isfinite(c.table_spread_mm), where,
@@ -155,6 +157,12 @@ SceneGenerator::SceneGenerator(const SceneConfig& cfg, std::vector<SceneModel> m
             const auto& sp = cached_stable_poses(*m.mesh);
             g.com = sp.first;
             g.stable = sp.second;
+            double best = std::cos(30 * kDeg);
+            for (size_t i = 0; i < g.stable.size(); ++i)
+                if (-double(g.stable[i].down.z()) >= best) {
+                    best = -double(g.stable[i].down.z());
+                    g.upright = int(i);
+                }
         }
         models_.push_back(std::move(g));
     }
@@ -372,6 +380,9 @@ std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_resting(
                 break;
             }
         }
+        if (cfg_.upright_prob > 0 && k < size_t(n_targets) && m.upright >= 0 &&
+            rng.uniform() < cfg_.upright_prob)
+            sp = size_t(m.upright);
         const double yaw = rng.uniform(0, 360) * kDeg;
         const Eigen::Matrix3d R = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
                                   geom::resting_rotation(m.stable[sp]);

@@ -147,6 +147,7 @@ SceneConfig parse_scene_config(const std::string& json_text, const std::string& 
         {"camera_distance", as_array2(c.camera_distance)},
         {"camera_elevation", as_array2(c.camera_elevation)},
         {"camera_roll_max", as_double(c.camera_roll_max)},
+        {"upright_prob", as_double(c.upright_prob)},
         {"table_spread_mm", as_double(c.table_spread_mm)},
         {"look_at_jitter_mm", as_double(c.look_at_jitter_mm)},
         {"table_size_mm", as_double(c.table_size_mm)},
@@ -213,6 +214,7 @@ std::string scene_config_to_json(const SceneConfig& c) {
     j["camera_distance"] = c.camera_distance;
     j["camera_elevation"] = c.camera_elevation;
     j["camera_roll_max"] = c.camera_roll_max;
+    j["upright_prob"] = c.upright_prob;
     j["table_spread_mm"] = c.table_spread_mm;
     j["look_at_jitter_mm"] = c.look_at_jitter_mm;
     j["table_size_mm"] = c.table_size_mm;

@@ -600,6 +600,39 @@ std::string detector_eval_table(const DetectorEvalResult& r) {
     return o.str();
 }
 
+int64_t export_detector_average(const std::vector<std::string>& exports,
+                                const std::string& out_path) {
+    G2L_CHECK(exports.size() >= 2, "average: give at least two detector exports, got ",
+              exports.size());
+    const std::string& first = exports.front();
+    nn::LoadedDetector base = nn::load_detector(first);
+    std::map<std::string, Tensor> sum = base.net->state_dict();
+    for (auto& [name, t] : sum) t = t.clone();
+    for (size_t i = 1; i < exports.size(); ++i) {
+        const nn::LoadedDetector d = nn::load_detector(exports[i]);
+        G2L_CHECK(d.object_ids == base.object_ids && d.downscale == base.downscale &&
+                      d.net->config().width == base.net->config().width,
+                  "average: '", exports[i], "' has other objects, width or downscale than '",
+                  first, "' (average exports of one detector's fine-tuning runs)");
+        for (const auto& [name, t] : d.net->state_dict()) {
+            Tensor& s = sum.at(name);  // same config: same tensor names and shapes
+            if (t.dtype() != DType::F32) continue;  // integer buffers: the first export's
+            float* a = s.data<float>();
+            const float* b = t.data<float>();
+            for (int64_t k = 0; k < t.numel(); ++k) a[k] += b[k];
+        }
+    }
+    const double n = double(exports.size());
+    for (auto& [name, t] : sum)
+        if (t.dtype() == DType::F32) {
+            float* a = t.data<float>();
+            for (int64_t k = 0; k < t.numel(); ++k) a[k] = float(double(a[k]) / n);
+        }
+    base.net->load_state_dict(sum, true);
+    nn::save_detector(out_path, *base.net, base.object_ids, base.downscale);
+    return int64_t(fs::file_size(out_path));
+}
+
 // ---------------------------------------------------------------- training
 void object_tone(std::vector<uint8_t>& rgb, const std::vector<uint16_t>& groups, int w, int h,
                  double prob, Rng& rng) {

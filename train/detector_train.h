@@ -98,6 +98,12 @@ std::string detector_config_to_json(const DetectorTrainConfig& cfg);
 void object_tone(std::vector<uint8_t>& rgb, const std::vector<uint16_t>& groups, int w, int h,
                  double prob, Rng& rng);
 
+/// Writes to `out_path` a detector export whose weights and BatchNorm statistics are the
+/// element-wise mean of two or more detector exports of the same objects, width and downscale
+/// (a "model soup" of fine-tuning runs from one start). Returns the bytes written; throws
+/// naming the file that is not a detector export or does not match the first.
+int64_t export_detector_average(const std::vector<std::string>& exports, const std::string& out_path);
+
 /// A box of class `cls` in the detector's input pixels (top-left corner and size).
 struct DetBox {
     int cls = 0;

@@ -53,7 +53,8 @@ int main(int argc, char** argv) {
     app.add_option("--average", average_args,
                    "OUT CHECKPOINT CHECKPOINT...: write an inference export whose weights are the "
                    "mean of two or more checkpoints of one run (e.g. its last epoch_N.g2l files) "
-                   "and exit")
+                   "and exit; with detector exports (detector.g2l), a detector export whose "
+                   "weights and BatchNorm statistics are their mean")
         ->expected(3, 1000);
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
@@ -71,7 +72,9 @@ int main(int argc, char** argv) {
     if (!average_args.empty()) {
         try {
             const std::vector<std::string> src(average_args.begin() + 1, average_args.end());
-            const int64_t bytes = g2l::train::export_average(src, average_args[0]);
+            const int64_t bytes = g2l::nn::is_detector_export(src.front())
+                                      ? g2l::train::export_detector_average(src, average_args[0])
+                                      : g2l::train::export_average(src, average_args[0]);
             std::printf("g2l_train: the mean of %zu checkpoints -> %s (%.1f MB)\n", src.size(),
                         average_args[0].c_str(), double(bytes) / 1e6);
             return 0;

@@ -184,6 +184,12 @@ void save_detector(const std::string& path, const Detector& net,
     save_checkpoint(path, tensors, meta.dump());
 }
 
+bool is_detector_export(const std::string& path) {
+    const Checkpoint ck = load_checkpoint(path);
+    const json meta = parse_json_strict(ck.meta_json, path + " (metadata)");
+    return meta.is_object() && meta.value("format", "") == kDetectorExportFormat;
+}
+
 LoadedDetector load_detector(const std::string& path) {
     const Checkpoint ck = load_checkpoint(path);
     const json meta = parse_json_strict(ck.meta_json, path + " (metadata)");

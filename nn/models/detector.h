@@ -99,6 +99,9 @@ struct LoadedDetector {
     int downscale = 2;
 };
 LoadedDetector load_detector(const std::string& path);
+/// True when the file is a g2l checkpoint whose metadata says it is a detector export (false
+/// for any other checkpoint, e.g. a pose model). Throws naming the file when it cannot be read.
+bool is_detector_export(const std::string& path);
 /// Writes the export (weights + {format "g2l-detector", num_classes, width, object_ids,
 /// downscale}) atomically.
 void save_detector(const std::string& path, const Detector& net,

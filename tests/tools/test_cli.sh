@@ -49,6 +49,12 @@ expect 2 "$B/train/g2l_train" --average out.g2l one.g2l
 has "At least 3 required"
 expect 1 "$B/train/g2l_train" --average "$T/avg.g2l" "$T/none.g2l" "$T/none2.g2l"
 has "none.g2l"
+# Detector exports average into a detector export (the mean of one export with itself is it);
+# a pose model among them is named.
+expect 0 "$B/train/g2l_train" --average "$T/davg.g2l" "$S/models/lmo_detector.g2l" "$S/models/lmo_detector.g2l"
+cmp -s "$T/davg.g2l" "$S/models/lmo_detector.g2l" || fail "the mean of a detector with itself differs from it"
+expect 1 "$B/train/g2l_train" --average "$T/davg2.g2l" "$S/models/lmo_detector.g2l" "$S/models/ycbv_sim2real.g2l"
+has "ycbv_sim2real.g2l' is not a detector export"
 expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --root r --oracle mask
 has "mask"
 expect 2 "$B/train/g2l_eval" --detector d.g2l --root r --oracle seg

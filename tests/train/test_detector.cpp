@@ -255,6 +255,37 @@ TEST_CASE("detector: bad configs, shapes and exports are named errors", "[detect
     REQUIRE_THROWS_WITH(nn::load_detector(path + ".cut"), Contains("truncated"));
     save_checkpoint(path + ".other", {{"x", Tensor::zeros({1})}}, R"({"format": "g2l-model"})");
     REQUIRE_THROWS_WITH(nn::load_detector(path + ".other"), Contains("is not a detector export"));
+    // The mean of detector exports (g2l_train --average with detector.g2l files).
+    REQUIRE(nn::is_detector_export(path));
+    REQUIRE_FALSE(nn::is_detector_export(path + ".other"));
+    dc.seed = 99;
+    nn::Detector net2(dc);
+    const std::string path2 = (fs::path(dir) / "det2.g2l").string();
+    nn::save_detector(path2, net2, {7, 9}, 2);
+    const std::string avg = (fs::path(dir) / "avg.g2l").string();
+    REQUIRE(train::export_detector_average({path, path2}, avg) > 0);
+    const nn::LoadedDetector la = nn::load_detector(avg);
+    REQUIRE(la.object_ids == std::vector<int>{7, 9});
+    {
+        const auto a = net.state_dict().at("heat.bias").to_vector<float>();
+        const auto b = net2.state_dict().at("heat.bias").to_vector<float>();
+        const auto m = la.net->state_dict().at("heat.bias").to_vector<float>();
+        REQUIRE(m.size() == a.size());
+        for (size_t i = 0; i < m.size(); ++i) CHECK(m[i] == Approx(0.5 * (a[i] + b[i])).margin(1e-7));
+        // Conv weights differ between the seeds: the mean is not just one of them.
+        const auto wa = net.state_dict().at("stem.conv.weight").to_vector<float>();
+        const auto wb = net2.state_dict().at("stem.conv.weight").to_vector<float>();
+        const auto wm = la.net->state_dict().at("stem.conv.weight").to_vector<float>();
+        int between = 0;
+        for (size_t i = 0; i < wm.size(); ++i) between += wa[i] != wb[i] && wm[i] == Approx(0.5 * (wa[i] + wb[i]));
+        CHECK(between > 0);
+    }
+    nn::save_detector(path2 + ".objs", net2, {7, 8}, 2);
+    REQUIRE_THROWS_WITH(train::export_detector_average({path, path2 + ".objs"}, avg),
+                        Contains("'" + path2 + ".objs' has other objects, width or downscale than '" + path + "'"));
+    REQUIRE_THROWS_WITH(train::export_detector_average({path, path + ".other"}, avg),
+                        Contains("is not a detector export"));
+    REQUIRE_THROWS_WITH(train::export_detector_average({path}, avg), Contains("at least two"));
     std::vector<uint8_t> rgb(12, 0);
     REQUIRE_THROWS_WITH(nn::detector_input(rgb.data(), 2, 2, 3, nullptr, nullptr),
                         Contains("downscale must be 1, 2 or 4"));

@@ -78,7 +78,8 @@ int main(int argc, char** argv) {
     std::string detector_path;
     app.add_option("--detector", detector_path,
                    "a 2D detector export (<run_dir>/detector.g2l of a \"task\": \"detector\" "
-                   "training): finds the boxes on the --rgb image instead of --boxes / --box");
+                   "training): finds the boxes on the frame instead of --boxes / --box; it sees "
+                   "what its export says: the --rgb image, the depth, or both");
     bool det_mirror = false;
     app.add_flag("--det-mirror", det_mirror,
                  "the detector also sees the image mirrored left-right and averages the two "
@@ -126,10 +127,6 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "g2l_infer: --det-mirror needs --detector FILE\n");
         return g2l::cli::kUsageError;
     }
-    if (!detector_path.empty() && rgb_path.empty()) {
-        std::fprintf(stderr, "g2l_infer: --detector needs the --rgb image\n");
-        return g2l::cli::kUsageError;
-    }
     try {
         // Boxes first: a typo there should not wait for the model to load.
         std::vector<g2l::ObjectBox> boxes;
@@ -173,6 +170,11 @@ int main(int argc, char** argv) {
         opt.meshes = meshes;
         if (!detector_path.empty() && app.count("--min-score")) opt.min_detection_score = min_score;
         g2l::PoseEstimator est(model, opt);
+        if (!detector_path.empty() && rgb_path.empty() && est.detector_input() != "depth") {
+            std::fprintf(stderr, "g2l_infer: --detector '%s' is an %s detector: it needs the "
+                                 "--rgb image\n", detector_path.c_str(), est.detector_input().c_str());
+            return g2l::cli::kUsageError;
+        }
         g2l::FrameView f;
         f.width = w;
         f.height = h;

@@ -103,6 +103,15 @@ Points crop_points(const std::string& crop, const Points& pts, const Eigen::Vect
     return out;
 }
 
+double box_iou(double ax, double ay, double aw, double ah, double bx, double by, double bw,
+               double bh) {
+    const double x0 = std::max(ax, bx), y0 = std::max(ay, by);
+    const double x1 = std::min(ax + aw, bx + bw), y1 = std::min(ay + ah, by + bh);
+    const double inter = std::max(0.0, x1 - x0) * std::max(0.0, y1 - y0);
+    const double uni = aw * ah + bw * bh - inter;
+    return uni > 0 ? inter / uni : 0.0;
+}
+
 Box2i clip_box(const Box2i& b, int width, int height) {
     const int64_t x0 = std::max<int64_t>(0, b.x), y0 = std::max<int64_t>(0, b.y);
     const int64_t x1 = std::min<int64_t>(width, int64_t(b.x) + std::max(0, b.w));

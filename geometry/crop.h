@@ -50,6 +50,11 @@ Points crop_points(const std::string& crop, const Points& pts, const Eigen::Vect
 /// `box` clipped to a width x height image (an empty box when nothing is left).
 Box2i clip_box(const Box2i& box, int width, int height);
 
+/// Intersection over union of two boxes given as top-left corner and size (pixels); 0 when
+/// the union is empty.
+double box_iou(double ax, double ay, double aw, double ah, double bx, double by, double bw,
+               double bh);
+
 /// The sphere centre from a 2D box and the depth alone, as a detector gives it: in the central
 /// third of the box (the whole box when that third has no valid depth), the valid pixel whose
 /// depth is nearest the median depth there (ties: nearest the box centre), back-projected with

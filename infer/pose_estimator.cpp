@@ -180,32 +180,40 @@ std::vector<double> PoseEstimator::keypoints(int obj_id) const {
     return out;
 }
 
+namespace {
+
+// The checks every frame with depth passes (throws naming `who` and the field).
+void check_frame(const FrameView& f, const char* who) {
+    G2L_CHECK(f.width > 0 && f.height > 0, who, ": frame size must be positive, got ", f.width,
+              " x ", f.height);
+    G2L_CHECK((f.depth_u16 != nullptr) != (f.depth_mm != nullptr), who,
+              ": set exactly one of FrameView::depth_u16 and depth_mm (",
+              f.depth_u16 ? "both" : "neither", " given)");
+    G2L_CHECK(!f.depth_u16 || (std::isfinite(f.depth_scale) && f.depth_scale > 0), who,
+              ": depth_scale must be finite and > 0, got ", f.depth_scale);
+    G2L_CHECK(std::isfinite(f.K.fx) && std::isfinite(f.K.fy) && f.K.fx > 0 && f.K.fy > 0, who,
+              ": focal lengths must be finite and > 0, got fx=", f.K.fx, " fy=", f.K.fy);
+    G2L_CHECK(std::isfinite(f.K.cx) && std::isfinite(f.K.cy), who,
+              ": principal point must be finite, got cx=", f.K.cx, " cy=", f.K.cy);
+}
+
+// The frame's depth in mm: depth_mm itself, or depth_u16 * depth_scale converted into `buf`.
+const float* depth_in_mm(const FrameView& f, std::vector<float>& buf) {
+    if (f.depth_mm) return f.depth_mm;
+    buf.resize(size_t(f.width) * size_t(f.height));
+    for (size_t i = 0; i < buf.size(); ++i) buf[i] = float(double(f.depth_u16[i]) * f.depth_scale);
+    return buf.data();
+}
+
+}  // namespace
+
 std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
                                                 const std::vector<ObjectBox>& boxes) {
-    G2L_CHECK(f.width > 0 && f.height > 0, "PoseEstimator::estimate: frame size must be positive, got ",
-              f.width, " x ", f.height);
-    G2L_CHECK((f.depth_u16 != nullptr) != (f.depth_mm != nullptr),
-              "PoseEstimator::estimate: set exactly one of FrameView::depth_u16 and depth_mm (",
-              f.depth_u16 ? "both" : "neither", " given)");
-    G2L_CHECK(!f.depth_u16 || (std::isfinite(f.depth_scale) && f.depth_scale > 0),
-              "PoseEstimator::estimate: depth_scale must be finite and > 0, got ", f.depth_scale);
-    G2L_CHECK(std::isfinite(f.K.fx) && std::isfinite(f.K.fy) && f.K.fx > 0 && f.K.fy > 0,
-              "PoseEstimator::estimate: focal lengths must be finite and > 0, got fx=", f.K.fx,
-              " fy=", f.K.fy);
-    G2L_CHECK(std::isfinite(f.K.cx) && std::isfinite(f.K.cy),
-              "PoseEstimator::estimate: principal point must be finite, got cx=", f.K.cx,
-              " cy=", f.K.cy);
+    check_frame(f, "PoseEstimator::estimate");
     Impl& m = *impl_;
     std::lock_guard<std::mutex> lock(m.mutex);
     if (m.options.threads > 0) set_num_threads(m.options.threads);
-    const size_t npix = size_t(f.width) * size_t(f.height);
-    const float* depth = f.depth_mm;
-    if (f.depth_u16) {
-        m.depth_mm.resize(npix);
-        for (size_t i = 0; i < npix; ++i)
-            m.depth_mm[i] = float(double(f.depth_u16[i]) * f.depth_scale);
-        depth = m.depth_mm.data();
-    }
+    const float* depth = depth_in_mm(f, m.depth_mm);
     geom::Intrinsics K;
     K.fx = f.K.fx, K.fy = f.K.fy, K.cx = f.K.cx, K.cy = f.K.cy;
     K.width = f.width, K.height = f.height;
@@ -306,14 +314,27 @@ std::vector<ObjectBox> PoseEstimator::detect(const FrameView& f) {
     Impl& m = *impl_;
     G2L_CHECK(m.detector, "PoseEstimator::detect: no detector (set EstimatorOptions::detector to "
                           "a detector export)");
-    G2L_CHECK(f.rgb != nullptr, "PoseEstimator::detect: the frame has no RGB image "
-                                "(FrameView::rgb)");
+    const nn::DetectorInput input = m.detector->input();
     G2L_CHECK(f.width > 0 && f.height > 0, "PoseEstimator::detect: frame size must be positive, "
                                            "got ", f.width, " x ", f.height);
+    G2L_CHECK(!nn::uses_rgb(input) || f.rgb != nullptr, "PoseEstimator::detect: the ",
+              nn::to_string(input), " detector '", m.options.detector,
+              "' needs the frame's RGB image (FrameView::rgb)");
+    nn::DetectorFrame df;
+    df.width = f.width, df.height = f.height, df.rgb = f.rgb;
+    std::vector<float> depth;
+    if (nn::uses_depth(input)) {
+        G2L_CHECK(f.depth_u16 || f.depth_mm, "PoseEstimator::detect: the ", nn::to_string(input),
+                  " detector '", m.options.detector, "' needs the frame's depth "
+                  "(FrameView::depth_u16 or depth_mm)");
+        check_frame(f, "PoseEstimator::detect");
+        df.depth_mm = depth_in_mm(f, depth);
+        df.fx = f.K.fx, df.fy = f.K.fy, df.cx = f.K.cx, df.cy = f.K.cy;
+    }
     std::lock_guard<std::mutex> lock(m.mutex);
     if (m.options.threads > 0) set_num_threads(m.options.threads);
-    const auto dets = nn::detect(*m.detector->net, m.detector->downscale, f.rgb, f.width,
-                                 f.height, float(m.options.min_detection_score), 1,
+    const auto dets = nn::detect(*m.detector->net, m.detector->downscale, df,
+                                 float(m.options.min_detection_score), 1,
                                  m.options.detector_mirror);
     std::vector<ObjectBox> out;  // detect() returns them best first, one per class
     for (const nn::Detection& d : dets) {
@@ -326,6 +347,10 @@ std::vector<ObjectBox> PoseEstimator::detect(const FrameView& f) {
         out.push_back(b);
     }
     return out;
+}
+
+std::string PoseEstimator::detector_input() const {
+    return impl_->detector ? nn::to_string(impl_->detector->input()) : "";
 }
 
 std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& frame) {

@@ -23,6 +23,7 @@
 #include "core/rng.h"
 #include "core/threads.h"
 #include "data/bop.h"
+#include "geometry/crop.h"
 #include "data/draw.h"
 #include "data/render.h"
 #include "nn/ops/elementwise.h"
@@ -117,6 +118,7 @@ json to_json(const DetectorTrainConfig& c) {
                  {{"models_root", c.models_root},
                   {"object_ids", c.object_ids},
                   {"downscale", c.downscale},
+                  {"input", nn::to_string(c.input)},
                   {"min_visib_fract", c.min_visib_fract},
                   {"distractors_root", c.distractors_root},
                   {"distractor_ids", c.distractor_ids},
@@ -225,6 +227,9 @@ DetectorTrainConfig parse_detector_config(const std::string& json_text, const st
         kd.text("models_root", c.models_root);
         kd.ints("object_ids", c.object_ids);
         kd.num("downscale", c.downscale);
+        std::string input = nn::to_string(c.input);
+        kd.text("input", input);
+        c.input = nn::parse_detector_input(input, source + ": data.input");
         kd.num("min_visib_fract", c.min_visib_fract);
         kd.text("distractors_root", c.distractors_root);
         kd.ints("distractor_ids", c.distractor_ids);
@@ -394,13 +399,41 @@ Tensor detector_loss(const nn::DetOut& out, const std::vector<DetTargets>& targe
 // ---------------------------------------------------------------- evaluation
 namespace {
 
-double iou(float ax, float ay, float aw, float ah, float bx, float by, float bw, float bh) {
-    const float x0 = std::max(ax, bx), y0 = std::max(ay, by);
-    const float x1 = std::min(ax + aw, bx + bw), y1 = std::min(ay + ah, by + bh);
-    const float inter = std::max(0.f, x1 - x0) * std::max(0.f, y1 - y0);
-    const float uni = aw * ah + bw * bh - inter;
-    return uni > 0 ? double(inter / uni) : 0.0;
+// The detector on one dataset frame, fed what its input kind needs (the RGB image, the depth
+// in mm and the frame's intrinsics); *w / *h get the frame size, *ms the detector time.
+std::vector<nn::Detection> detect_frame(const nn::LoadedDetector& det, const data::Dataset& ds,
+                                        const data::Frame& fr, float min_score, int max_per_class,
+                                        bool mirror, int* w, int* h, double* ms) {
+    const nn::DetectorInput input = det.input();
+    data::Image img;
+    std::vector<float> depth;
+    nn::DetectorFrame f;
+    if (nn::uses_rgb(input)) {
+        G2L_CHECK(!fr.rgb_path.empty(), "the ", nn::to_string(input), " detector needs an RGB "
+                  "image and frame ", fr.scene, "/", fr.image_id, " of '", ds.root(), "' has none");
+        img = ds.load_rgb(fr);
+        G2L_CHECK(img.channels == 3, "'", fr.rgb_path, "' is not an RGB image");
+        f.rgb = img.data.data(), f.width = img.w, f.height = img.h;
+    }
+    if (nn::uses_depth(input)) {
+        G2L_CHECK(!fr.depth_path.empty(), "the ", nn::to_string(input), " detector needs a depth "
+                  "image and frame ", fr.scene, "/", fr.image_id, " of '", ds.root(), "' has none");
+        int dw = 0, dh = 0;
+        depth = ds.load_depth_mm(fr, &dw, &dh);
+        G2L_CHECK(!f.rgb || (dw == f.width && dh == f.height), "'", fr.depth_path, "' is ", dw,
+                  " x ", dh, " pixels but its RGB image '", fr.rgb_path, "' is ", f.width, " x ",
+                  f.height);
+        f.depth_mm = depth.data(), f.width = dw, f.height = dh;
+        f.fx = fr.K.fx, f.fy = fr.K.fy, f.cx = fr.K.cx, f.cy = fr.K.cy;
+    }
+    *w = f.width, *h = f.height;
+    const auto t0 = Clock::now();
+    std::vector<nn::Detection> dets =
+        nn::detect(*det.net, det.downscale, f, min_score, max_per_class, mirror);
+    *ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    return dets;
 }
+
 
 }  // namespace
 
@@ -414,10 +447,15 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
     r.rows.resize(det.object_ids.size());
     for (size_t i = 0; i < det.object_ids.size(); ++i) r.rows[i].obj_id = det.object_ids[i];
     std::vector<size_t> frames;
+    const bool need_rgb = nn::uses_rgb(det.input()), need_depth = nn::uses_depth(det.input());
     for (size_t f = 0; f < ds.frames().size(); ++f)
-        if (!ds.frames()[f].rgb_path.empty()) frames.push_back(f);
+        if ((!need_rgb || !ds.frames()[f].rgb_path.empty()) &&
+            (!need_depth || !ds.frames()[f].depth_path.empty()))
+            frames.push_back(f);
     G2L_CHECK(!frames.empty(), "evaluate_detector: the dataset '", ds.root(),
-              "' has no frame with an RGB image");
+              "' has no frame with the ", need_rgb ? "RGB" : "", need_rgb && need_depth ? " and " : "",
+              need_depth ? "depth" : "", " image the ", nn::to_string(det.input()),
+              " detector needs");
     if (max_frames > 0 && int(frames.size()) > max_frames) {
         std::vector<size_t> keep;
         for (int i = 0; i < max_frames; ++i)
@@ -429,12 +467,13 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
     data::RenderOutput ro;
     for (size_t fi = 0; fi < frames.size(); ++fi) {
         const data::Frame& fr = ds.frames()[frames[fi]];
-        const data::Image img = ds.load_rgb(fr);
-        G2L_CHECK(img.channels == 3, "evaluate_detector: '", fr.rgb_path, "' is not an RGB image");
-        const auto t0 = Clock::now();
+        struct {
+            int w = 0, h = 0;
+        } img;
+        double frame_ms = 0;
         const std::vector<nn::Detection> dets =
-            nn::detect(*det.net, det.downscale, img.data.data(), img.w, img.h, 0.01f, 10, mirror);
-        ms += std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+            detect_frame(det, ds, fr, 0.01f, 10, mirror, &img.w, &img.h, &frame_ms);
+        ms += frame_ms;
         // Visible masks: from the dataset, else rendered from the GT poses of the frame.
         bool rendered = false;
         auto ensure_render = [&]() {
@@ -475,7 +514,7 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
                 auto it = cls.find(in.obj_id);
                 if (gt_used[k] || it == cls.end() || it->second != d.cls) continue;
                 const geom::Box2i& b = in.box();
-                const double v = iou(d.x, d.y, d.w, d.h, float(b.x), float(b.y), float(b.w),
+                const double v = geom::box_iou(d.x, d.y, d.w, d.h, float(b.x), float(b.y), float(b.w),
                                      float(b.h));
                 if (v >= best_iou) best_iou = v, best = int(k);
             }
@@ -499,11 +538,11 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
             const std::vector<const nn::Detection*>& mine = by_class[size_t(it->second)];
             if (mine.empty()) continue;
             const nn::Detection* best = mine.front();  // the class's best: what the pipeline uses
-            if (iou(best->x, best->y, best->w, best->h, float(b.x), float(b.y), float(b.w),
+            if (geom::box_iou(best->x, best->y, best->w, best->h, float(b.x), float(b.y), float(b.w),
                     float(b.h)) >= 0.5)
                 ++row.found;
             for (size_t q = 0; q < std::min<size_t>(3, mine.size()); ++q)
-                if (iou(mine[q]->x, mine[q]->y, mine[q]->w, mine[q]->h, float(b.x), float(b.y),
+                if (geom::box_iou(mine[q]->x, mine[q]->y, mine[q]->w, mine[q]->h, float(b.x), float(b.y),
                         float(b.w), float(b.h)) >= 0.5) {
                     ++row.found_top3;
                     break;
@@ -548,8 +587,9 @@ std::vector<data::Detection> run_detector_on(const nn::LoadedDetector& det, cons
                                              float min_score, bool mirror) {
     G2L_CHECK(det.net, "run_detector_on: no network");
     std::vector<data::Detection> out;
+    const bool need_rgb = nn::uses_rgb(det.input()), need_depth = nn::uses_depth(det.input());
     for (const data::Frame& fr : ds.frames()) {
-        if (fr.rgb_path.empty()) continue;
+        if ((need_rgb && fr.rgb_path.empty()) || (need_depth && fr.depth_path.empty())) continue;
         int scene_id = -1;
         try {
             scene_id = std::stoi(fr.scene);
@@ -557,12 +597,10 @@ std::vector<data::Detection> run_detector_on(const nn::LoadedDetector& det, cons
             G2L_CHECK(false, "run_detector_on: scene '", fr.scene, "' is not a number (BOP scene "
                              "ids are), so detections cannot be matched to it");
         }
-        const data::Image img = ds.load_rgb(fr);
-        G2L_CHECK(img.channels == 3, "run_detector_on: '", fr.rgb_path, "' is not an RGB image");
-        const auto t0 = Clock::now();
-        const auto dets = nn::detect(*det.net, det.downscale, img.data.data(), img.w, img.h,
-                                     min_score, 3, mirror);
-        const double secs = std::chrono::duration<double>(Clock::now() - t0).count();
+        int w = 0, h = 0;
+        double ms = 0;
+        const auto dets = detect_frame(det, ds, fr, min_score, 3, mirror, &w, &h, &ms);
+        const double secs = ms / 1000;
         for (const nn::Detection& d : dets) {
             data::Detection o;
             o.scene_id = scene_id;
@@ -684,6 +722,7 @@ namespace {
 
 struct DetSample {
     std::vector<uint8_t> rgb;  // H x W x 3 at the detector's input resolution
+    std::vector<float> depth;  // H x W (mm), for a depth or rgbd detector
     std::vector<DetBox> boxes;
 };
 
@@ -868,7 +907,17 @@ data::SceneConfig input_scene(const DetectorTrainConfig& c) {
     s.camera.width /= c.downscale;
     s.camera.height /= c.downscale;
     s.target_obj_ids = c.object_ids;
-    s.noise.enabled = false;  // the detector sees colour only
+    if (!nn::uses_depth(c.input)) {
+        s.noise.enabled = false;  // the detector sees colour only
+    } else {
+        // Inference averages downscale x downscale sensor pixels into one input pixel
+        // (nn::detector_input), which divides the independent axial noise by downscale; the
+        // render at input resolution gets that noise directly. Hole sizes are in pixels.
+        s.noise.sigma_a_mm /= c.downscale;
+        s.noise.sigma_b_mm_per_m2 /= c.downscale;
+        s.noise.hole_radius_min_px /= c.downscale;
+        s.noise.hole_radius_max_px /= c.downscale;
+    }
     return s;
 }
 
@@ -889,8 +938,9 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
         G2L_CHECK(models.models().count(id), "data.object_ids: no model ", id, " in ",
                   cfg.models_root);
         const geom::Mesh& mesh = models.load_model_mesh(id);
-        G2L_CHECK(mesh.colors.rows() > 0, "data.object_ids: model ", id, " of ", cfg.models_root,
-                  " has no vertex colours; the detector learns from colour renders");
+        G2L_CHECK(mesh.colors.rows() > 0 || !nn::uses_rgb(cfg.input), "data.object_ids: model ",
+                  id, " of ", cfg.models_root, " has no vertex colours; an ", nn::to_string(cfg.input),
+                  " detector learns from colour renders (data.input \"depth\" needs none)");
         sm.push_back({id, &mesh});
     }
     // Distractors: ids above kDistractorId (the largest id a model may have), numbered in
@@ -935,6 +985,7 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
     dc.num_classes = K;
     dc.width = cfg.width;
     dc.seed = cfg.seed;
+    dc.input = cfg.input;
     nn::Detector net(dc);
     nn::AdamOptions ao;
     ao.lr = cfg.lr;
@@ -965,9 +1016,10 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
     } else {
         if (!cfg.init.empty()) {  // fine-tuning: the weights of an export, a fresh optimiser
             const nn::LoadedDetector from = nn::load_detector(cfg.init);
-            G2L_CHECK(from.object_ids == cfg.object_ids && from.net->config().width == cfg.width,
-                      "model.init '", cfg.init, "': its objects / width differ from the config's "
-                      "(data.object_ids, model.width)");
+            G2L_CHECK(from.object_ids == cfg.object_ids && from.net->config().width == cfg.width &&
+                          from.input() == cfg.input,
+                      "model.init '", cfg.init, "': its objects / width / input differ from the "
+                      "config's (data.object_ids, model.width, data.input)");
             net.load_state_dict(from.net->state_dict(), true);
         }
         std::ofstream c(fs::path(run_dir) / "config.json");
@@ -998,6 +1050,7 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
             gen.render_frame(s * cfg.batch + b, fr, 1);
             DetSample& d = batch[size_t(b)];
             d.rgb = fr.rgb;
+            if (nn::uses_depth(cfg.input)) d.depth = fr.depth;
             Rng rng(mix_seed(mix_seed(cfg.seed, uint64_t(s)), uint64_t(b) + 17));
             if (cfg.object_tone_prob > 0) {  // each target its own group, the distractors one
                 const uint16_t dgroup = uint16_t(fr.instances.size() + 1);
@@ -1031,8 +1084,19 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
                     const bool disc = rng.uniform() < 0.5;
                     uint8_t col[3];
                     for (uint8_t& c : col) c = uint8_t(rng.below(256));
+                    float plate = 0;  // depth: a plate in front of the object's nearest point
+                    if (!d.depth.empty()) {
+                        float near = 1e30f;
+                        for (int y = bb.y; y < bb.y + bb.h; ++y)
+                            for (int x = bb.x; x < bb.x + bb.w; ++x) {
+                                const size_t i = size_t(y) * size_t(W) + size_t(x);
+                                if (i < d.depth.size() && d.depth[i] > 0) near = std::min(near, d.depth[i]);
+                            }
+                        plate = near < 1e29f ? std::max(50.f, near - float(rng.uniform(30, 150))) : 0.f;
+                    }
                     for_each_shape_pixel(W, H, cx, cy, rw, rh, disc, [&](size_t i) {
                         for (int k = 0; k < 3; ++k) d.rgb[i * 3 + size_t(k)] = col[k];
+                        if (plate > 0) d.depth[i] = plate;
                         vis[i] = 0;
                     });
                 }
@@ -1080,7 +1144,7 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
         if (!val) return;
         nn::LoadedDetector ld;
         ld.downscale = cfg.downscale;
-        ld.object_ids = cfg.object_ids;
+        ld.object_ids = cfg.object_ids;  // the input kind travels in dc
         // Evaluate a copy in eval mode (the training net keeps its mode and state).
         ld.net = std::make_unique<nn::Detector>(dc);
         ld.net->load_state_dict(net.state_dict(), true);
@@ -1107,6 +1171,17 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
                 data::Image im;
                 im.w = W, im.h = H, im.channels = 3;
                 im.data = batch[size_t(b)].rgb;
+                if (!nn::uses_rgb(cfg.input)) {  // what a depth detector sees: the normals
+                    std::vector<float> f(size_t(nn::kDepthChannels) * size_t(W) * size_t(H));
+                    nn::depth_features(batch[size_t(b)].depth.data(), W, H, scene.camera.fx,
+                                       scene.camera.fy, scene.camera.cx, scene.camera.cy, f.data(),
+                                       W, int64_t(W) * H);
+                    const size_t plane = size_t(W) * size_t(H);
+                    for (size_t i = 0; i < plane; ++i)
+                        for (int k = 0; k < 3; ++k)
+                            im.data[i * 3 + size_t(k)] =
+                                uint8_t(std::clamp(127.5f * (f[(3 + size_t(k)) * plane + i] + 1.f), 0.f, 255.f));
+                }
                 for (const DetBox& d : batch[size_t(b)].boxes) {
                     const data::Rgb c{0, 255, 0};
                     data::draw_line(&im, d.x, d.y, d.x + d.w, d.y, c, 1);
@@ -1118,15 +1193,22 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
             }
         }
         if (step + 1 < cfg.steps) next = std::async(std::launch::async, make_batch, step + 1);
-        Tensor x = Tensor::empty({cfg.batch, 3, H, W});
+        const int C = nn::detector_input_channels(cfg.input);
+        Tensor x = Tensor::empty({cfg.batch, C, H, W});
         std::vector<DetTargets> targets;
         for (int b = 0; b < cfg.batch; ++b) {
             const std::vector<uint8_t>& rgb = batch[size_t(b)].rgb;
-            float* px = x.data<float>() + size_t(b) * 3 * size_t(H) * size_t(W);
-            for (int k = 0; k < 3; ++k)
-                for (size_t i = 0; i < size_t(H) * size_t(W); ++i)
-                    px[size_t(k) * size_t(H) * size_t(W) + i] =
-                        (float(rgb[i * 3 + size_t(k)]) / 255.f - 0.5f) / 0.25f;
+            float* px = x.data<float>() + size_t(b) * size_t(C) * size_t(H) * size_t(W);
+            if (nn::uses_rgb(cfg.input))
+                for (int k = 0; k < 3; ++k)
+                    for (size_t i = 0; i < size_t(H) * size_t(W); ++i)
+                        px[size_t(k) * size_t(H) * size_t(W) + i] =
+                            (float(rgb[i * 3 + size_t(k)]) / 255.f - 0.5f) / 0.25f;
+            if (nn::uses_depth(cfg.input))  // the encoding inference computes (nn::detector_input)
+                nn::depth_features(batch[size_t(b)].depth.data(), W, H, scene.camera.fx,
+                                   scene.camera.fy, scene.camera.cx, scene.camera.cy,
+                                   px + (nn::uses_rgb(cfg.input) ? 3 : 0) * size_t(H) * size_t(W),
+                                   W, int64_t(H) * W);
             targets.push_back(make_detector_targets(batch[size_t(b)].boxes, K, hw, hh));
         }
         // Step decay: x0.1 at 70% and 90% of the steps.

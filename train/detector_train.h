@@ -31,6 +31,10 @@ struct DetectorTrainConfig {
     std::string models_root;        ///< BOP root whose models/ (with vertex colours) are rendered
     std::vector<int> object_ids;    ///< classes, in heat-map order
     int downscale = 2;              ///< the detector sees the image at 1/downscale
+    /// What the detector sees (nn::DetectorInput): "rgb" (colour renders: the meshes need
+    /// vertex colours), "depth" (the depth encoding of the renders with the scene's sensor
+    /// noise: untextured meshes are fine), "rgbd" (both; coloured meshes).
+    nn::DetectorInput input = nn::DetectorInput::rgb;
     double min_visib_fract = 0.1;   ///< less visible instances get no target
     data::SceneConfig scene;        ///< at full resolution (the camera of the real images)
     /// Unannotated distractor objects (scene.distractors_min/max per frame): the models of this
@@ -48,7 +52,8 @@ struct DetectorTrainConfig {
     /// "dead leaves" clutter texture (rectangles and discs of random colours and sizes).
     double clutter_prob = 0.8;
     /// Per object, the probability of a random-coloured disc or rectangle (20-60% of its box)
-    /// pasted over it; the target box is that of the pixels left visible.
+    /// pasted over it; the target box is that of the pixels left visible. In the depth it is a
+    /// flat plate 30-150 mm in front of the object's nearest point.
     double occluder_prob = 0.0;
     /// Directories of real photographs (any scene without the target objects, e.g. YCB-Video
     /// frames for LINEMOD objects); with probability photo_prob a random crop of one (random

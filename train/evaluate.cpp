@@ -69,6 +69,7 @@ struct Acc {
     std::vector<double> rot_sym, trans_all;
     double seg_iou = 0;
     int seg_n = 0;
+    int det_n = 0, det_hits = 0;  // instances with a det_iou, of those IoU >= 0.5
 };
 
 
@@ -189,11 +190,14 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                 }
                 const auto it = best_det.find(std::make_tuple(scene_id, f.image_id, inst.obj_id));
                 detected = it != best_det.end();
+                res.det_iou = 0;
                 if (detected) {
                     const data::Detection& d = *it->second;
                     box0 = {int(std::lround(d.x)), int(std::lround(d.y)), int(std::lround(d.w)),
                             int(std::lround(d.h))};
                     res.score = d.score;
+                    const geom::Box2i gt = inst.box();
+                    res.det_iou = geom::box_iou(d.x, d.y, d.w, d.h, gt.x, gt.y, gt.w, gt.h);
                     if (d.peak_x >= 0 && d.peak_y >= 0) det_peak = std::make_pair(d.peak_x, d.peak_y);
                 }
             }
@@ -313,7 +317,11 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
             a.seg_iou += r.seg_iou;
             a.seg_n++;
         }
-        if (!r.found) {
+        if (r.det_iou >= 0) {
+            a.det_n++;
+            a.det_hits += !r.det_miss();
+        }
+        if (!r.found || r.det_miss()) {  // no pose, or a pose from no true detection
             a.misses++;
             a.rot_sym.push_back(180.0);
             a.adds_m.push_back(std::numeric_limits<double>::infinity());
@@ -353,11 +361,13 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
         s.median_trans_err_mm = geom::median(a.trans_all);
         s.num_symmetries = meta.at(id).num_symmetries;
         s.seg_iou = a.seg_n ? a.seg_iou / a.seg_n : -1;
+        s.det_recall_50 = a.det_n ? 100.0 * a.det_hits / a.det_n : -1;
         rep.objects.push_back(s);
         all.adds_m.insert(all.adds_m.end(), a.adds_m.begin(), a.adds_m.end());
         all.add_m.insert(all.add_m.end(), a.add_m.begin(), a.add_m.end());
         all.count += a.count; all.misses += a.misses; all.found += a.found;
         all.rot += a.rot; all.trans += a.trans;
+        all.det_n += a.det_n; all.det_hits += a.det_hits;
     }
     ObjectScores& avg = rep.average;
     avg.name = "average";
@@ -379,6 +389,7 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
         avg.median_trans_err_mm += s.median_trans_err_mm / double(rep.objects.size());
     }
     avg.seg_iou = seg_objects ? seg_sum / seg_objects : -1;
+    avg.det_recall_50 = all.det_n ? 100.0 * all.det_hits / all.det_n : -1;
     avg.mean_rot_err_deg = all.found ? all.rot / all.found : 0;
     avg.mean_trans_err_mm = all.found ? all.trans / all.found : 0;
     return rep;
@@ -419,6 +430,17 @@ std::string report_markdown(const EvalReport& r) {
     for (const auto& o : r.objects)
         row(o, std::to_string(o.obj_id) + " " + o.name + (o.symmetric ? " (sym)" : ""));
     row(r.average, "**average**");
+    if (r.average.det_recall_50 >= 0) {  // detector boxes: what the detector found
+        s += "\nDetection recall (the class's best box at IoU >= 0.5 with the visible GT box; an "
+             "instance without one counts as a miss above):";
+        for (const auto& o : r.objects) {
+            std::snprintf(line, sizeof line, " %d: %.1f%%", o.obj_id, o.det_recall_50);
+            s += line;
+        }
+        std::snprintf(line, sizeof line, "; all %d instances: **%.1f%%**\n", r.average.count,
+                      r.average.det_recall_50);
+        s += line;
+    }
     const double total = r.ms_crop + r.ms_seg + r.ms_t + r.ms_rot + r.ms_refine;
     std::snprintf(line, sizeof line,
                   "\nTime per instance (ms, mean of %d; the paper's Table 5 stages):\n\n"
@@ -445,7 +467,10 @@ std::string report_json(const EvalReport& r) {
                               {"trans_err_mm_median", o.median_trans_err_mm},
                               {"num_symmetries", o.num_symmetries},
                               {"seg_iou", o.seg_iou >= 0 ? nlohmann::json(o.seg_iou)
-                                                         : nlohmann::json(nullptr)}};
+                                                         : nlohmann::json(nullptr)},
+                              {"det_recall_50", o.det_recall_50 >= 0
+                                                    ? nlohmann::json(o.det_recall_50)
+                                                    : nlohmann::json(nullptr)}};
     };
     for (const auto& o : r.objects) j["objects"].push_back(obj(o));
     j["average"] = obj(r.average);

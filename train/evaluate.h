@@ -65,6 +65,10 @@ struct ObjectScores {
     /// Mean IoU of the points taken as object with the ground-truth object points (training's
     /// label rule), among the crop points the seg net sees; -1 when no instance had either.
     double seg_iou = -1;
+    /// With detections: % of the instances whose class's best detection in the frame overlaps
+    /// the ground-truth visible box with IoU >= 0.5 (the average pools every instance);
+    /// -1 with ground-truth boxes. An instance without such a detection counts as a miss.
+    double det_recall_50 = -1;
 };
 
 struct EvalReport {
@@ -86,6 +90,11 @@ struct InstanceResult {
     /// IoU of the object points taken (seg net or oracle) with the GT object points among the
     /// crop points the seg net sees; -1 when there was no crop or neither set has a point.
     double seg_iou = -1;
+    /// With detections: IoU of the box used with the ground-truth visible box (0 without a
+    /// detection); -1 with ground-truth boxes. Below 0.5 the instance counts as a miss (its
+    /// pose is still estimated and written).
+    double det_iou = -1;
+    bool det_miss() const { return det_iou >= 0 && det_iou < 0.5; }
     // Where it came from and what was estimated (evaluate_gt_boxes fills these; aggregate
     // does not read them).
     std::string scene;             ///< BOP scene folder name ("000048")

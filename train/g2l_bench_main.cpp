@@ -8,9 +8,77 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+
 #include "core/error.h"
 #include "core/threads.h"
+#include "data/bop.h"
+#include "g2l/pose_estimator.h"
 #include "train/bench.h"
+#include "train/config.h"
+
+namespace {
+
+// frame_ms: the whole pipeline of the library (g2l::PoseEstimator, the code g2l_infer and an
+// embedding program run) on one real 640 x 480 frame: the detector, then the poses of its
+// `objects` best boxes, each refined against its mesh. The frame: the first one of
+// ../shared/data/ycbv/train_real/000001 (4 objects) when that is there, else the fixture's
+// first frame (tests/data/ycbv_mini); the what-string says which.
+std::vector<g2l::train::BenchFigure> bench_frame(int reps, const std::string& model,
+                                                 const std::string& detector, int objects) {
+    namespace fs = std::filesystem;
+    const std::string shared = g2l::train::shared_data_root("");
+    std::string root = shared + "/ycbv", scene = "000001";
+    if (!fs::is_directory(root + "/train_real/" + scene)) {
+        root = std::string(G2L_SOURCE_DIR) + "/tests/data/ycbv_mini";
+        scene = "000000";
+    }
+    const g2l::data::BopDataset ds = g2l::data::open_bop(root, "train_real", {});
+    const g2l::data::Frame* fr = nullptr;
+    for (const auto& f : ds.frames())
+        if (f.scene == scene) {
+            fr = &f;
+            break;
+        }
+    G2L_CHECK(fr, "bench_frame: no frame in ", root, "/train_real/", scene);
+    int w = 0, h = 0;
+    const std::vector<uint16_t> depth = g2l::data::load_depth_png(fr->depth_path, &w, &h);
+    const g2l::data::Image rgb = ds.load_rgb(*fr);
+    g2l::EstimatorOptions opt;
+    opt.detector = detector;
+    opt.meshes = root + "/models";
+    opt.min_detection_score = 0.0;  // always `objects` boxes, whatever the scores
+    g2l::PoseEstimator est(model, opt);
+    g2l::FrameView v;
+    v.width = w, v.height = h;
+    v.depth_u16 = depth.data();
+    v.depth_scale = fr->depth_scale;
+    v.rgb = rgb.data.data();
+    v.K = {fr->K.fx, fr->K.fy, fr->K.cx, fr->K.cy};
+    std::vector<double> ms;
+    int boxes = 0;
+    for (int r = 0; r < reps + 1; ++r) {
+        const auto t0 = std::chrono::steady_clock::now();
+        std::vector<g2l::ObjectBox> b = est.detect(v);
+        if (int(b.size()) > objects) b.resize(size_t(objects));
+        const auto poses = est.estimate(v, b);
+        const double dt = std::chrono::duration<double, std::milli>(
+                              std::chrono::steady_clock::now() - t0).count();
+        boxes = int(poses.size());
+        if (r >= 1) ms.push_back(dt);
+    }
+    std::sort(ms.begin(), ms.end());
+    const double p90 = ms[std::min(ms.size() - 1, size_t(0.9 * double(ms.size())))];
+    const std::string what = "g2l::PoseEstimator: detector + " + std::to_string(boxes) +
+                             " poses + refinement on " + root + "/train_real/" + scene + "/" +
+                             std::to_string(fr->image_id) + " (" + std::to_string(w) + " x " +
+                             std::to_string(h) + "), " + std::to_string(reps) + " runs";
+    return {{"frame_ms", ms[ms.size() / 2], "ms", what}, {"frame_ms_p90", p90, "ms", what}};
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
     CLI::App app{"g2l_bench: times the g2l engine on G2L-Net layer shapes (medians of repeated "
@@ -41,6 +109,17 @@ int main(int argc, char** argv) {
                                                   "object (0 = skip)")
         ->check(CLI::Range(0, 100000));
     app.add_flag("--pose-only", pose_only, "only the batch-1 pose figures (and peak RSS)");
+    int frame_reps = 9, frame_objects = 4;
+    std::string frame_model = std::string(G2L_SOURCE_DIR) + "/models/ycbv_sim2real.g2l";
+    std::string frame_detector = std::string(G2L_SOURCE_DIR) + "/models/ycbv_detector.g2l";
+    app.add_option("--frame-reps", frame_reps, "timed runs of the whole pipeline on one real "
+                                               "frame: detector, poses, refinement (0 = skip)")
+        ->check(CLI::Range(0, 100000));
+    app.add_option("--frame-objects", frame_objects, "boxes posed per frame (the detector's best)")
+        ->check(CLI::Range(1, 64));
+    app.add_option("--frame-model", frame_model, "pose model of the frame figure")->capture_default_str();
+    app.add_option("--frame-detector", frame_detector, "detector of the frame figure")
+        ->capture_default_str();
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_bench"); rc >= 0) return rc;
@@ -69,6 +148,11 @@ int main(int argc, char** argv) {
         if (refine_reps > 0) {
             const auto rf = g2l::train::bench_refine(quick ? 2 : refine_reps);
             figs.insert(figs.end(), rf.begin(), rf.end());
+        }
+        if (frame_reps > 0 && !pose_only) {
+            const auto ff = bench_frame(quick ? 2 : frame_reps, frame_model, frame_detector,
+                                        frame_objects);
+            figs.insert(figs.end(), ff.begin(), ff.end());
         }
         if (train_reps > 0 && !pose_only) {
             // The setting: paper architecture, batch 8, 1500 -> 1000 points.

@@ -92,6 +92,15 @@ void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::train::I
             const Eigen::Vector3d lo = mi.min, hi = mi.min + mi.size;
             g2l::data::draw_box3d(&im, lo, hi, r->gt, f.K, {40, 220, 40});
             if (r->found) g2l::data::draw_box3d(&im, lo, hi, r->est, f.K, {40, 90, 255});
+            if (r->det_iou >= 0 && !r->box.empty()) {  // the detector's 2D box (yellow)
+                const float x0 = float(r->box.x), y0 = float(r->box.y);
+                const float x1 = x0 + float(r->box.w), y1 = y0 + float(r->box.h);
+                const g2l::data::Rgb c{250, 210, 0};
+                g2l::data::draw_line(&im, x0, y0, x1, y0, c, 1);
+                g2l::data::draw_line(&im, x1, y0, x1, y1, c, 1);
+                g2l::data::draw_line(&im, x1, y1, x0, y1, c, 1);
+                g2l::data::draw_line(&im, x0, y1, x0, y0, c, 1);
+            }
         }
         g2l::data::save_png((fs::path(vis_dir) / (f.scene + "_" + std::to_string(f.image_id) + ".png")).string(), im);
     }
@@ -162,14 +171,16 @@ int main(int argc, char** argv) {
     app.add_option("--instances", instances_path, "write one JSON line per evaluated instance "
                                                   "(ids, status, box, estimate, ground truth, errors)");
     app.add_option("--vis", vis_dir, "write images with the projected 3D boxes (ground truth green, "
-                                      "estimate blue) and an accuracy-threshold curve per object "
+                                      "estimate blue, the detector's 2D box yellow) and an "
+                                      "accuracy-threshold curve per object "
                                       "into this folder");
     app.add_option("--json", json_out, "also write the figures as JSON to this file");
     app.add_option("--max-instances", max_instances, "evaluate at most this many instances")
         ->check(g2l::cli::at_least(0));
     app.add_option("--min-visib", min_visib, "skip instances less visible than this fraction "
-                                             "(default: 0 with --root, the source's "
-                                             "min_visib_fract with --config)")
+                                             "(default: 0 with --root, 0.1 with --root and "
+                                             "--boxes det, the source's min_visib_fract with "
+                                             "--config)")
         ->check(CLI::Range(0.0, 1.0));
     app.add_option("--crop-points", crop_points,
                    "seg-net input points per crop (default: the checkpoint's sampling.points, as "
@@ -328,7 +339,9 @@ int main(int argc, char** argv) {
             g2l::data::BopOptions o;
             o.obj_ids = present;
             sets_to_eval.emplace_back(root + "/" + split, g2l::data::open_bop(root, split, o));
-            set_min_visib.push_back(min_visib);
+            // The detector's figures count every instance at least 10% visible (the detector
+            // evaluation's rule); GT boxes keep every instance unless told.
+            set_min_visib.push_back(app.count("--min-visib") || boxes != "det" ? min_visib : 0.1);
         } else {
             const auto cfg = g2l::train::load_config(config, sets);
             for (const auto& s : cfg.data.val) {
@@ -370,7 +383,7 @@ int main(int argc, char** argv) {
             if (boxes == "file") eo.detections = &detections;
             const auto& ds = sets_to_eval[i].second;
             std::vector<g2l::data::Detection> det_boxes;
-            if (boxes == "det") {  // the detector on every frame's RGB image, timed
+            if (boxes == "det") {  // the detector on every frame (what its input needs), timed
                 det_boxes = g2l::train::run_detector_on(*det, ds, 0.05f, det_mirror);
                 eo.detections = &det_boxes;
             }

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
 #include "core/autograd.h"
@@ -18,6 +20,29 @@ namespace g2l::nn {
 
 using json = nlohmann::json;
 constexpr const char* kDetectorExportFormat = "g2l-detector";
+
+const char* to_string(DetectorInput input) {
+    switch (input) {
+        case DetectorInput::rgb: return "rgb";
+        case DetectorInput::depth: return "depth";
+        case DetectorInput::rgbd: return "rgbd";
+    }
+    return "?";
+}
+
+DetectorInput parse_detector_input(const std::string& text, const std::string& where) {
+    if (text == "rgb") return DetectorInput::rgb;
+    if (text == "depth") return DetectorInput::depth;
+    if (text == "rgbd") return DetectorInput::rgbd;
+    G2L_CHECK(false, where, ": the detector input must be \"rgb\", \"depth\" or \"rgbd\", got \"",
+              text, "\"");
+    return DetectorInput::rgb;
+}
+
+int detector_input_channels(DetectorInput input) {
+    return input == DetectorInput::rgb ? 3 : input == DetectorInput::depth ? kDepthChannels
+                                                                            : 3 + kDepthChannels;
+}
 
 void validate(const DetectorConfig& cfg) {
     G2L_CHECK(cfg.num_classes >= 1 && cfg.num_classes <= 4096,
@@ -39,7 +64,7 @@ Detector::Detector(const DetectorConfig& cfg) : cfg_(cfg) {
     validate(cfg);
     Rng rng(cfg.seed);
     const int64_t c = cfg.width;
-    stem_ = register_module("stem", std::make_shared<ConvBnRelu>(3, c, 2, rng));
+    stem_ = register_module("stem", std::make_shared<ConvBnRelu>(detector_input_channels(cfg.input), c, 2, rng));
     d4a_ = register_module("d4a", std::make_shared<ConvBnRelu>(c, 2 * c, 2, rng));
     d4b_ = register_module("d4b", std::make_shared<ConvBnRelu>(2 * c, 2 * c, 1, rng));
     d8a_ = register_module("d8a", std::make_shared<ConvBnRelu>(2 * c, 4 * c, 2, rng));
@@ -64,10 +89,11 @@ Detector::Detector(const DetectorConfig& cfg) : cfg_(cfg) {
 }
 
 DetOut Detector::forward(const Tensor& x) {
-    G2L_CHECK(x.defined() && x.dim() == 4 && x.size(1) == 3 && x.size(0) > 0 && x.size(2) > 0 &&
-                  x.size(3) > 0 && x.size(2) % 16 == 0 && x.size(3) % 16 == 0,
-              "Detector: expected the image as [B, 3, H, W] with H and W positive multiples of "
-              "16, got ",
+    const int channels = detector_input_channels(cfg_.input);
+    G2L_CHECK(x.defined() && x.dim() == 4 && x.size(1) == channels && x.size(0) > 0 &&
+                  x.size(2) > 0 && x.size(3) > 0 && x.size(2) % 16 == 0 && x.size(3) % 16 == 0,
+              "Detector: expected the ", to_string(cfg_.input), " input as [B, ", channels,
+              ", H, W] with H and W positive multiples of 16, got ",
               x.defined() ? x.desc() : std::string("undefined"));
     const Tensor f2 = stem_->forward(x);
     const Tensor f4 = d4b_->forward(d4a_->forward(f2));
@@ -141,33 +167,162 @@ std::vector<Detection> decode_detections(const float* prob, const float* size,
     return all;
 }
 
-Tensor detector_input(const uint8_t* rgb, int width, int height, int downscale, int* in_w,
+void depth_features(const float* depth_mm, int w, int h, double fx, double fy, double cx,
+                    double cy, float* out, int64_t out_row, int64_t out_stride_plane) {
+    G2L_CHECK(depth_mm && out && w > 0 && h > 0 && out_row >= w &&
+                  out_stride_plane >= out_row * int64_t(h),
+              "depth_features: bad sizes (", w, " x ", h, ", row ", out_row, ", plane ",
+              out_stride_plane, ")");
+    G2L_CHECK(std::isfinite(fx) && std::isfinite(fy) && fx > 0 && fy > 0 && std::isfinite(cx) &&
+                  std::isfinite(cy),
+              "depth_features: the intrinsics must be finite with fx, fy > 0, got fx ", fx,
+              ", fy ", fy, ", cx ", cx, ", cy ", cy);
+    const size_t n = size_t(w) * size_t(h);
+    std::vector<float> z(n);
+    for (size_t i = 0; i < n; ++i) {
+        const float v = depth_mm[i];
+        z[i] = std::isfinite(v) && v > 0 ? v : 0.f;
+    }
+    // Summed-area tables of the measured depth and of the measured count, for the relief.
+    std::vector<double> sz((size_t(w) + 1) * (size_t(h) + 1), 0.0), sn(sz.size(), 0.0);
+    const size_t W1 = size_t(w) + 1;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const float v = z[size_t(y) * size_t(w) + size_t(x)];
+            const size_t i = size_t(y + 1) * W1 + size_t(x + 1);
+            sz[i] = v + sz[i - 1] + sz[i - W1] - sz[i - W1 - 1];
+            sn[i] = (v > 0 ? 1.0 : 0.0) + sn[i - 1] + sn[i - W1] - sn[i - W1 - 1];
+        }
+    // The mean measured z in the window of radius `rad` around (x, y) (the pixel's own window
+    // holds at least the pixel when it is measured); 0 when none is.
+    auto window_mean = [&](const std::vector<double>& t, int x, int y, int rad, double* count) {
+        const int x0 = std::max(0, x - rad), x1 = std::min(w, x + rad + 1);
+        const int y0 = std::max(0, y - rad), y1 = std::min(h, y + rad + 1);
+        auto rect = [&](const std::vector<double>& q) {
+            return q[size_t(y1) * W1 + size_t(x1)] - q[size_t(y0) * W1 + size_t(x1)] -
+                   q[size_t(y1) * W1 + size_t(x0)] + q[size_t(y0) * W1 + size_t(x0)];
+        };
+        *count = rect(sn);
+        return *count > 0 ? rect(t) / *count : 0.0;
+    };
+    // Normals come from the depth smoothed over (2 kNormalSmooth + 1)^2 measured pixels: the
+    // sensor's per-pixel noise would otherwise swamp the slope over a few millimetres.
+    std::vector<float> zs(n, 0.f);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const size_t i = size_t(y) * size_t(w) + size_t(x);
+            double cnt = 0;
+            if (z[i] > 0) zs[i] = float(window_mean(sz, x, y, kNormalSmooth, &cnt));
+        }
+    auto point = [&](int x, int y, Eigen::Vector3d* p) {
+        if (x < 0 || y < 0 || x >= w || y >= h) return false;
+        const double v = zs[size_t(y) * size_t(w) + size_t(x)];
+        if (v <= 0) return false;
+        *p = Eigen::Vector3d((x - cx) * v / fx, (y - cy) * v / fy, v);
+        return true;
+    };
+    // The difference between the points on either side along one image axis (central where
+    // both are measured, else one-sided against the centre).
+    auto tangent = [&](int x, int y, int dx, int dy, const Eigen::Vector3d& c, Eigen::Vector3d* t) {
+        Eigen::Vector3d a, b;
+        const bool ha = point(x + dx, y + dy, &a), hb = point(x - dx, y - dy, &b);
+        if (ha && hb) *t = a - b;
+        else if (ha) *t = a - c;
+        else if (hb) *t = c - b;
+        else return false;
+        return true;
+    };
+    const int s = kNormalStep, r = kReliefRadius;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const int64_t o = int64_t(y) * out_row + x;
+            float f[kDepthChannels] = {0, 0, 0, 0, 0, 0};
+            Eigen::Vector3d c;
+            if (point(x, y, &c)) {
+                const double v = z[size_t(y) * size_t(w) + size_t(x)];
+                f[0] = 1;
+                f[1] = float(std::clamp((v - 1000.0) / 500.0, -2.0, 4.0));
+                double cnt = 0;
+                const double around = window_mean(sz, x, y, r, &cnt);
+                f[2] = float(std::clamp((v - around) / 30.0, -3.0, 3.0));
+                Eigen::Vector3d tx, ty;
+                if (tangent(x, y, s, 0, c, &tx) && tangent(x, y, 0, s, c, &ty)) {
+                    Eigen::Vector3d nrm = tx.cross(ty);
+                    const double len = nrm.norm();
+                    if (len > 1e-12) {
+                        nrm /= len;
+                        if (nrm.dot(c) > 0) nrm = -nrm;  // towards the camera
+                        f[3] = float(nrm.x()), f[4] = float(nrm.y()), f[5] = float(nrm.z());
+                    }
+                }
+            }
+            for (int k = 0; k < kDepthChannels; ++k) out[k * out_stride_plane + o] = f[k];
+        }
+}
+
+Tensor detector_input(const DetectorFrame& f, DetectorInput input, int downscale, int* in_w,
                       int* in_h) {
-    G2L_CHECK(rgb && width > 0 && height > 0, "detector_input: empty image (", width, " x ",
-              height, ")");
+    G2L_CHECK(f.width > 0 && f.height > 0, "detector_input: empty frame (", f.width, " x ",
+              f.height, ")");
     G2L_CHECK(downscale == 1 || downscale == 2 || downscale == 4,
               "detector_input: downscale must be 1, 2 or 4, got ", downscale);
-    const int w = width / downscale, h = height / downscale;
-    G2L_CHECK(w > 0 && h > 0, "detector_input: image ", width, " x ", height,
+    G2L_CHECK(!uses_rgb(input) || f.rgb, "detector_input: the ", to_string(input),
+              " detector needs the frame's RGB image, and the frame has none");
+    G2L_CHECK(!uses_depth(input) || f.depth_mm, "detector_input: the ", to_string(input),
+              " detector needs the frame's depth image, and the frame has none");
+    const int w = f.width / downscale, h = f.height / downscale;
+    G2L_CHECK(w > 0 && h > 0, "detector_input: image ", f.width, " x ", f.height,
               " is smaller than the downscale ", downscale);
     const int W = (w + 15) / 16 * 16, H = (h + 15) / 16 * 16;
-    Tensor x = Tensor::zeros({1, 3, H, W});  // host: filled from the host image
+    const int C = detector_input_channels(input);
+    Tensor x = Tensor::zeros({1, C, H, W});  // host: filled from the host image
     float* px = x.data<float>();
-    const float norm = 1.f / float(downscale * downscale);
-    for (int y = 0; y < h; ++y)
-        for (int xx = 0; xx < w; ++xx)
-            for (int c = 0; c < 3; ++c) {
+    const size_t plane = size_t(H) * size_t(W);
+    if (uses_rgb(input)) {
+        const float norm = 1.f / float(downscale * downscale);
+        for (int y = 0; y < h; ++y)
+            for (int xx = 0; xx < w; ++xx)
+                for (int c = 0; c < 3; ++c) {
+                    float s = 0;
+                    for (int dy = 0; dy < downscale; ++dy)
+                        for (int dx = 0; dx < downscale; ++dx)
+                            s += float(f.rgb[(size_t(y * downscale + dy) * size_t(f.width) +
+                                              size_t(xx * downscale + dx)) * 3 + size_t(c)]);
+                    px[size_t(c) * plane + size_t(y) * size_t(W) + size_t(xx)] =
+                        (s * norm / 255.f - 0.5f) / 0.25f;
+                }
+    }
+    if (uses_depth(input)) {
+        std::vector<float> z(size_t(w) * size_t(h), 0.f);
+        for (int y = 0; y < h; ++y)
+            for (int xx = 0; xx < w; ++xx) {
                 float s = 0;
+                int m = 0;
                 for (int dy = 0; dy < downscale; ++dy)
-                    for (int dx = 0; dx < downscale; ++dx)
-                        s += float(rgb[(size_t(y * downscale + dy) * size_t(width) +
-                                        size_t(xx * downscale + dx)) * 3 + size_t(c)]);
-                px[(size_t(c) * size_t(H) + size_t(y)) * size_t(W) + size_t(xx)] =
-                    (s * norm / 255.f - 0.5f) / 0.25f;
+                    for (int dx = 0; dx < downscale; ++dx) {
+                        const float v = f.depth_mm[size_t(y * downscale + dy) * size_t(f.width) +
+                                                   size_t(xx * downscale + dx)];
+                        if (std::isfinite(v) && v > 0) s += v, ++m;
+                    }
+                z[size_t(y) * size_t(w) + size_t(xx)] = m ? s / float(m) : 0.f;
             }
+        const double k = 1.0 / downscale;  // pixel centres: (u + 0.5) k - 0.5
+        float* pd = px + (uses_rgb(input) ? 3 * plane : 0);
+        depth_features(z.data(), w, h, f.fx * k, f.fy * k, (f.cx + 0.5) * k - 0.5,
+                       (f.cy + 0.5) * k - 0.5, pd, W, int64_t(plane));
+    }
     if (in_w) *in_w = W;
     if (in_h) *in_h = H;
     return x;
+}
+
+Tensor detector_input(const uint8_t* rgb, int width, int height, int downscale, int* in_w,
+                      int* in_h) {
+    DetectorFrame f;
+    f.rgb = rgb, f.width = width, f.height = height;
+    G2L_CHECK(rgb && width > 0 && height > 0, "detector_input: empty image (", width, " x ",
+              height, ")");
+    return detector_input(f, DetectorInput::rgb, downscale, in_w, in_h);
 }
 
 void save_detector(const std::string& path, const Detector& net,
@@ -180,6 +335,7 @@ void save_detector(const std::string& path, const Detector& net,
                     {"width", net.config().width},
                     {"object_ids", object_ids},
                     {"downscale", downscale},
+                    {"input", to_string(net.config().input)},
                     {"stride", Detector::kStride}};
     save_checkpoint(path, tensors, meta.dump());
 }
@@ -207,6 +363,10 @@ LoadedDetector load_detector(const std::string& path) {
     dc.num_classes = need_int("num_classes");
     dc.width = need_int("width");
     d.downscale = need_int("downscale");
+    if (meta.contains("input")) {
+        G2L_CHECK(meta["input"].is_string(), "'", path, "': metadata key 'input' is not a string");
+        dc.input = parse_detector_input(meta["input"].get<std::string>(), "'" + path + "': input");
+    }
     G2L_CHECK(d.downscale == 1 || d.downscale == 2 || d.downscale == 4, "'", path,
               "': downscale must be 1, 2 or 4, got ", d.downscale);
     G2L_CHECK(meta.contains("object_ids") && meta["object_ids"].is_array(), "'", path,
@@ -229,26 +389,49 @@ LoadedDetector load_detector(const std::string& path) {
 }
 
 std::vector<Detection> detect(Detector& net, int downscale, const uint8_t* rgb, int width,
-                                  int height, float min_score, int max_per_class, bool mirror) {
+                              int height, float min_score, int max_per_class, bool mirror) {
+    G2L_CHECK(rgb && width > 0 && height > 0, "detect: empty image (", width, " x ", height, ")");
+    DetectorFrame f;
+    f.rgb = rgb, f.width = width, f.height = height;
+    return detect(net, downscale, f, min_score, max_per_class, mirror);
+}
+
+std::vector<Detection> detect(Detector& net, int downscale, const DetectorFrame& frame,
+                              float min_score, int max_per_class, bool mirror) {
+    const DetectorInput input = net.config().input;
+    const int width = frame.width, height = frame.height;
     int iw = 0, ih = 0;
-    const Tensor x = detector_input(rgb, width, height, downscale, &iw, &ih);
+    const Tensor x = detector_input(frame, input, downscale, &iw, &ih);
     autograd::NoGradGuard ng;
     net.eval();
     const DetOut o = net.forward(x);
     Tensor prob = sigmoid(o.heat);
     if (mirror) {
-        // The image mirrored left-right; its map is mirrored back over the cells that cover
+        // The frame mirrored left-right; its map is mirrored back over the cells that cover
         // the image (cell x of the mirrored input is cell cols - 1 - x of the image when the
         // input width is a whole number of cells; else the odd column is the plain pass's).
-        std::vector<uint8_t> m(size_t(width) * size_t(height) * 3);
-        for (int y = 0; y < height; ++y)
-            for (int xx = 0; xx < width; ++xx)
-                for (int c = 0; c < 3; ++c)
-                    m[(size_t(y) * width + xx) * 3 + c] =
-                        rgb[(size_t(y) * width + size_t(width - 1 - xx)) * 3 + c];
+        DetectorFrame mf = frame;
+        std::vector<uint8_t> m;
+        std::vector<float> md;
+        if (frame.rgb) {
+            m.resize(size_t(width) * size_t(height) * 3);
+            for (int y = 0; y < height; ++y)
+                for (int xx = 0; xx < width; ++xx)
+                    for (int c = 0; c < 3; ++c)
+                        m[(size_t(y) * width + xx) * 3 + c] =
+                            frame.rgb[(size_t(y) * width + size_t(width - 1 - xx)) * 3 + c];
+            mf.rgb = m.data();
+        }
+        if (frame.depth_mm) {
+            md.resize(size_t(width) * size_t(height));
+            for (int y = 0; y < height; ++y)
+                for (int xx = 0; xx < width; ++xx)
+                    md[size_t(y) * width + xx] = frame.depth_mm[size_t(y) * width + size_t(width - 1 - xx)];
+            mf.depth_mm = md.data();
+            mf.cx = (width - 1) - frame.cx;
+        }
         int mw = 0, mh = 0;
-        const Tensor pm = sigmoid(net.forward(detector_input(m.data(), width, height, downscale,
-                                                             &mw, &mh)).heat);
+        const Tensor pm = sigmoid(net.forward(detector_input(mf, input, downscale, &mw, &mh)).heat);
         const int64_t K = prob.size(1), hh = prob.size(2), ww = prob.size(3);
         const int64_t cols = std::min<int64_t>(ww, (width / downscale) / Detector::kStride);
         float* p = prob.data<float>();

@@ -291,7 +291,9 @@ TEST_CASE("PoseEstimator: the detector gives boxes with peaks, and the whole pip
     o.min_detection_score = 0.0;  // every class peak, whatever an untrained net scores
     g2l::PoseEstimator est(kModel, o);
     g2l::FrameView v = view_of(f);
-    REQUIRE_THROWS_WITH(est.detect(v), Contains("no RGB image"));
+    REQUIRE_THROWS_WITH(est.detect(v), Contains("the rgb detector '" + o.detector +
+                                                "' needs the frame's RGB image"));
+    REQUIRE(est.detector_input() == "rgb");
     v.rgb = rgb.data.data();
     const auto boxes = est.detect(v);
     REQUIRE(boxes.size() == 2);  // one per class
@@ -323,8 +325,40 @@ TEST_CASE("PoseEstimator: the detector gives boxes with peaks, and the whole pip
     const auto p = est.estimate(v, {gt});
     REQUIRE(p.size() == 1);
     REQUIRE(p[0].num_crop_points > 0);
+    // A depth detector: detect() feeds it the depth and the intrinsics (no RGB needed), the
+    // same detections as nn::detect on the frame's depth in mm; without depth, a clear error.
+    {
+        g2l::nn::DetectorConfig dd = dc;
+        dd.input = g2l::nn::DetectorInput::depth;
+        g2l::nn::Detector dnet(dd);
+        g2l::nn::save_detector(dir + "/det_depth.g2l", dnet, {8, 14}, 4);
+        g2l::EstimatorOptions od = o;
+        od.detector = dir + "/det_depth.g2l";
+        g2l::PoseEstimator est_d(kModel, od);
+        REQUIRE(est_d.detector_input() == "depth");
+        g2l::FrameView vd = view_of(f);  // depth_u16, no RGB
+        const auto bd = est_d.detect(vd);
+        REQUIRE(bd.size() == 2);
+        std::vector<float> mm(f.depth.size());
+        for (size_t i = 0; i < mm.size(); ++i) mm[i] = float(double(f.depth[i]) * vd.depth_scale);
+        g2l::nn::DetectorFrame df;
+        df.width = vd.width, df.height = vd.height, df.depth_mm = mm.data();
+        df.fx = vd.K.fx, df.fy = vd.K.fy, df.cx = vd.K.cx, df.cy = vd.K.cy;
+        const auto dd_direct = g2l::nn::detect(dnet, 4, df, 0.0f, 1);
+        REQUIRE(dd_direct.size() == bd.size());
+        for (size_t i = 0; i < bd.size(); ++i) {
+            CHECK(bd[i].obj_id == (dd_direct[i].cls == 0 ? 8 : 14));
+            CHECK(bd[i].score == Approx(dd_direct[i].score).epsilon(0).margin(1e-6));
+        }
+        REQUIRE(est_d.estimate(vd).size() == 2);  // the whole pipeline without RGB
+        g2l::FrameView none = vd;
+        none.depth_u16 = nullptr;
+        REQUIRE_THROWS_WITH(est_d.detect(none), Contains("the depth detector '" + od.detector +
+                                                         "' needs the frame's depth"));
+    }
     // Without a detector: a clear error; a bad score threshold: a clear error.
     g2l::PoseEstimator plain(kModel);
+    REQUIRE(plain.detector_input().empty());
     REQUIRE_THROWS_WITH(plain.detect(v), Contains("no detector"));
     g2l::EstimatorOptions bad;
     bad.min_detection_score = 2;

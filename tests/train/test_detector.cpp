@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include "core/autograd.h"
 #include "core/checkpoint.h"
@@ -549,4 +550,154 @@ TEST_CASE("detector training: distractor meshes and photo backgrounds", "[detect
                         Contains("augment.backgrounds: '" + dir + "/nope' is not a directory"));
     REQUIRE_THROWS_WITH(train::run_detector_training(config(dir + "/run3", dir + "/models"), quiet),
                         Contains("holds no .png or .jpg image"));
+}
+
+TEST_CASE("detector: the depth input encodes planes, steps and holes as documented", "[detector]") {
+    // A 40 x 30 depth image through a camera with fx = fy = 50, centre (19.5, 14.5).
+    const int w = 40, h = 30;
+    const double fx = 50, fy = 50, cx = 19.5, cy = 14.5;
+    const size_t plane = size_t(w) * size_t(h);
+    std::vector<float> feat(size_t(nn::kDepthChannels) * plane, -9.f);
+    auto at = [&](int c, int x, int y) { return feat[size_t(c) * plane + size_t(y) * size_t(w) + size_t(x)]; };
+    // 1. A fronto-parallel plane at 1500 mm: measured, depth (1500 - 1000) / 500 = 1, no
+    //    relief, normal (0, 0, -1) (towards the camera).
+    std::vector<float> z(plane, 1500.f);
+    nn::depth_features(z.data(), w, h, fx, fy, cx, cy, feat.data(), w, int64_t(plane));
+    for (int y = 0; y < h; y += 7)
+        for (int x = 0; x < w; x += 9) {
+            CHECK(at(0, x, y) == 1.f);
+            CHECK(at(1, x, y) == Approx(1.0).epsilon(0).margin(1e-6));
+            CHECK(at(2, x, y) == Approx(0.0).epsilon(0).margin(1e-5));
+            CHECK(at(3, x, y) == Approx(0.0).epsilon(0).margin(1e-6));
+            CHECK(at(4, x, y) == Approx(0.0).epsilon(0).margin(1e-6));
+            CHECK(at(5, x, y) == Approx(-1.0).epsilon(0).margin(1e-6));
+        }
+    // 2. A plane tilted about the y axis, z = 1000 + 0.5 X: its normal is (0.5, 0, -1) / |.|.
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            z[size_t(y) * size_t(w) + size_t(x)] = float(1000.0 / (1.0 - 0.5 * (x - cx) / fx));
+    nn::depth_features(z.data(), w, h, fx, fy, cx, cy, feat.data(), w, int64_t(plane));
+    const double n = std::sqrt(1.25);
+    for (int y = 5; y < h - 5; y += 5)
+        for (int x = 5; x < w - 5; x += 5) {
+            CHECK(at(3, x, y) == Approx(0.5 / n).epsilon(0).margin(0.01));
+            CHECK(at(4, x, y) == Approx(0.0).epsilon(0).margin(0.01));
+            CHECK(at(5, x, y) == Approx(-1.0 / n).epsilon(0).margin(0.01));
+        }
+    // 3. A box 60 mm in front of a plane at 1000 mm: negative relief on it, positive just
+    //    around it on the plane; holes (0, NaN, inf) give 0 in every channel.
+    std::fill(z.begin(), z.end(), 1000.f);
+    for (int y = 10; y < 20; ++y)
+        for (int x = 15; x < 25; ++x) z[size_t(y) * size_t(w) + size_t(x)] = 940.f;
+    z[0] = 0.f;
+    z[1] = std::numeric_limits<float>::quiet_NaN();
+    z[2] = std::numeric_limits<float>::infinity();
+    nn::depth_features(z.data(), w, h, fx, fy, cx, cy, feat.data(), w, int64_t(plane));
+    CHECK(at(2, 20, 15) < -0.5f);
+    CHECK(at(2, 20, 15) >= -3.f);
+    CHECK(at(2, 20, 22) > 0.1f);
+    for (int x = 0; x < 3; ++x)
+        for (int c = 0; c < nn::kDepthChannels; ++c) CHECK(at(c, x, 0) == 0.f);
+    CHECK(at(0, 3, 0) == 1.f);
+    // Bad sizes and intrinsics are named.
+    REQUIRE_THROWS_WITH(nn::depth_features(z.data(), w, h, 0, fy, cx, cy, feat.data(), w, int64_t(plane)),
+                        Contains("fx, fy > 0"));
+    REQUIRE_THROWS_WITH(nn::depth_features(z.data(), w, h, fx, fy, cx, cy, feat.data(), w - 1, int64_t(plane)),
+                        Contains("bad sizes"));
+}
+
+TEST_CASE("detector: depth and rgbd detectors take what their export says", "[detector]") {
+    REQUIRE(nn::parse_detector_input("depth", "x") == nn::DetectorInput::depth);
+    REQUIRE(nn::parse_detector_input("rgbd", "x") == nn::DetectorInput::rgbd);
+    REQUIRE(std::string(nn::to_string(nn::DetectorInput::rgb)) == "rgb");
+    REQUIRE(nn::detector_input_channels(nn::DetectorInput::rgbd) == 3 + nn::kDepthChannels);
+    REQUIRE_THROWS_WITH(nn::parse_detector_input("thermal", "det.json: data.input"),
+                        Contains("det.json: data.input: the detector input must be \"rgb\", \"depth\" or \"rgbd\", got \"thermal\""));
+    // The config key, its round trip and a bad value.
+    const std::string dir = testing::temp_dir("detector_depth");
+    const train::DetectorTrainConfig c = train::parse_detector_config(
+        R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1], "input": "depth"}})",
+        "det.json", dir);
+    REQUIRE(c.input == nn::DetectorInput::depth);
+    REQUIRE(train::parse_detector_config(train::detector_config_to_json(c), "det.json", dir).input ==
+            nn::DetectorInput::depth);
+    REQUIRE_THROWS_WITH(train::parse_detector_config(
+                            R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1], "input": "ir"}})",
+                            "det.json", dir),
+                        Contains("data.input: the detector input must be"));
+    // Pooling: each 2 x 2 block's measured pixels are averaged (0 / NaN are not measured).
+    const int W = 32, H = 32;
+    std::vector<float> depth(size_t(W) * size_t(H), 800.f);
+    depth[0] = 0.f;
+    depth[1] = std::numeric_limits<float>::quiet_NaN();
+    depth[size_t(W)] = 900.f;  // block (0, 0): 0, NaN, 900, 800 -> the mean of 900 and 800
+    std::vector<uint8_t> rgb(size_t(W) * size_t(H) * 3, 128);
+    nn::DetectorFrame fr;
+    fr.width = W, fr.height = H, fr.depth_mm = depth.data();
+    fr.fx = fr.fy = 40, fr.cx = 15.5, fr.cy = 15.5;
+    int iw = 0, ih = 0;
+    const Tensor x = nn::detector_input(fr, nn::DetectorInput::depth, 2, &iw, &ih);
+    REQUIRE(x.size(1) == nn::kDepthChannels);
+    REQUIRE(iw == 16);
+    REQUIRE(ih == 16);
+    const float* px = x.data<float>();
+    CHECK(px[0] == 1.f);                                               // valid
+    CHECK(px[size_t(iw) * size_t(ih)] == Approx((850.0 - 1000) / 500).epsilon(0).margin(1e-6));  // depth
+    CHECK(px[size_t(iw) * size_t(ih) + 1] == Approx((800.0 - 1000) / 500).epsilon(0).margin(1e-6));
+    // rgbd: the colour channels first, then the same depth channels.
+    fr.rgb = rgb.data();
+    const Tensor xd = nn::detector_input(fr, nn::DetectorInput::rgbd, 2, nullptr, nullptr);
+    REQUIRE(xd.size(1) == 3 + nn::kDepthChannels);
+    CHECK(xd.data<float>()[0] == Approx((128 / 255.0 - 0.5) / 0.25).epsilon(0).margin(1e-6));
+    const size_t p = size_t(iw) * size_t(ih);
+    for (size_t i = 0; i < size_t(nn::kDepthChannels) * p; ++i)
+        if (xd.data<float>()[3 * p + i] != px[i]) FAIL("rgbd depth channel value " << i << " differs");
+    // Missing buffers are named.
+    nn::DetectorFrame no_depth = fr;
+    no_depth.depth_mm = nullptr;
+    REQUIRE_THROWS_WITH(nn::detector_input(no_depth, nn::DetectorInput::depth, 2, nullptr, nullptr),
+                        Contains("the depth detector needs the frame's depth image"));
+    nn::DetectorFrame no_rgb = fr;
+    no_rgb.rgb = nullptr;
+    REQUIRE_THROWS_WITH(nn::detector_input(no_rgb, nn::DetectorInput::rgbd, 2, nullptr, nullptr),
+                        Contains("the rgbd detector needs the frame's RGB image"));
+    nn::DetectorFrame no_k = fr;
+    no_k.fx = 0;
+    REQUIRE_THROWS_WITH(nn::detector_input(no_k, nn::DetectorInput::depth, 2, nullptr, nullptr),
+                        Contains("fx, fy > 0"));
+    // A depth detector: its stem takes the depth channels; the export keeps "input"; an RGB
+    // tensor is refused naming the expected shape; detect() runs on the depth frame.
+    nn::DetectorConfig dc;
+    dc.num_classes = 2;
+    dc.width = 4;
+    dc.input = nn::DetectorInput::depth;
+    nn::Detector net(dc);
+    REQUIRE_THROWS_WITH(net.forward(Tensor::zeros({1, 3, 16, 16})),
+                        Contains("expected the depth input as [B, 6, H, W]"));
+    const std::string path = (fs::path(dir) / "det_depth.g2l").string();
+    nn::save_detector(path, net, {3, 4}, 2);
+    const nn::LoadedDetector ld = nn::load_detector(path);
+    REQUIRE(ld.input() == nn::DetectorInput::depth);
+    const auto dets = nn::detect(*ld.net, 2, fr, 0.0f, 1);
+    REQUIRE(dets.size() == 2);
+    const auto mirrored = nn::detect(*ld.net, 2, fr, 0.0f, 1, true);
+    REQUIRE(mirrored.size() == 2);
+    REQUIRE_THROWS_WITH(nn::detect(*ld.net, 2, no_depth, 0.0f, 1), Contains("needs the frame's depth"));
+    // An export written before "input" existed is an RGB detector; a bad value is named.
+    {
+        const Checkpoint ck = load_checkpoint(path);
+        nlohmann::json meta = nlohmann::json::parse(ck.meta_json);
+        std::vector<std::pair<std::string, Tensor>> ts(ck.tensors.begin(), ck.tensors.end());
+        meta.erase("input");
+        nn::DetectorConfig rc = dc;
+        rc.input = nn::DetectorInput::rgb;
+        nn::Detector rnet(rc);
+        std::vector<std::pair<std::string, Tensor>> rts;
+        for (const auto& [name, t] : rnet.state_dict()) rts.emplace_back("model." + name, t);
+        save_checkpoint(path + ".old", rts, meta.dump());
+        REQUIRE(nn::load_detector(path + ".old").input() == nn::DetectorInput::rgb);
+        meta["input"] = "sonar";
+        save_checkpoint(path + ".bad", ts, meta.dump());
+        REQUIRE_THROWS_WITH(nn::load_detector(path + ".bad"), Contains("got \"sonar\""));
+    }
 }

@@ -173,11 +173,14 @@ public:
     /// > 0, focal lengths not finite and > 0, principal point not finite.
     std::vector<ObjectPose> estimate(const FrameView& frame, const std::vector<ObjectBox>& boxes);
 
-    /// G2L-Net's global localization: the detector (EstimatorOptions::detector) on the frame's
-    /// RGB image; the best box of each object it was trained on that scores at least
+    /// G2L-Net's global localization: the detector (EstimatorOptions::detector) on what its
+    /// export asks for (detector_input(): the RGB image, the depth with the intrinsics, or
+    /// both); the best box of each object it was trained on that scores at least
     /// EstimatorOptions::min_detection_score, best first, with its heat-map peak. Throws
-    /// std::runtime_error when no detector was given or the frame has no RGB image.
+    /// std::runtime_error when no detector was given or the frame lacks what it needs.
     std::vector<ObjectBox> detect(const FrameView& frame);
+    /// What the detector sees: "rgb", "depth" or "rgbd"; "" without a detector.
+    std::string detector_input() const;
     /// The whole pipeline: detect(frame), then estimate(frame, those boxes).
     std::vector<ObjectPose> estimate(const FrameView& frame);
 

@@ -66,8 +66,14 @@ expect 2 "$B/apps/g2l_infer" --model m.g2l --depth d.png --camera c.json --box 1
 has "--det-mirror needs --detector"
 expect 1 "$B/train/g2l_eval" --detector "$T/none.g2l" --root "$S/tests/data/ycbv_mini" --split train_real
 has "none.g2l"
-expect 2 "$B/apps/g2l_infer" --depth d.png --camera c.json --detector d.g2l
-has "needs the --rgb image"
+# What a detector needs comes from its export: the shipped LM-O detector sees colour.
+F="$S/tests/data/ycbv_mini/train_real/000000"
+expect 2 "$B/apps/g2l_infer" --model "$S/models/ycbv_sim2real.g2l" --depth "$F/depth/000001.png" \
+    --camera "$F/scene_camera.json" --image-id 1 --detector "$S/models/lmo_detector.g2l"
+has "is an rgb detector: it needs the --rgb image"
+expect 1 "$B/apps/g2l_infer" --model "$S/models/ycbv_sim2real.g2l" --depth "$F/depth/000001.png" \
+    --camera "$F/scene_camera.json" --image-id 1 --detector "$T/none.g2l"
+has "none.g2l"
 hasnt "failed at"
 expect 1 "$B/train/g2l_train" --config "$T/missing.json" --verbose
 has "failed at"

@@ -3,7 +3,10 @@
 // (g2l::PoseEstimator). Prints JSON; --vis writes the frame with the projected 3D boxes.
 #include <CLI/CLI.hpp>
 
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -23,7 +26,10 @@ using json = nlohmann::json;
 // Intrinsics and depth scale from a camera JSON: a BOP camera.json ({fx, fy, cx, cy,
 // depth_scale, ...}), one scene_camera.json entry ({cam_K, depth_scale}), or a whole
 // scene_camera.json (then `image_id` picks the entry).
-void read_camera(const std::string& path, int image_id, g2l::CameraIntrinsics* K, double* scale) {
+// `width` / `height` get the camera's image size when the file gives one (a BOP camera.json
+// does), else stay 0.
+void read_camera(const std::string& path, int image_id, g2l::CameraIntrinsics* K, double* scale,
+                 int* width, int* height) {
     json j = g2l::parse_json_file(path);
     G2L_CHECK(j.is_object(), "camera '", path, "': expected a JSON object");
     if (!j.contains("cam_K") && !j.contains("fx")) {
@@ -53,7 +59,18 @@ void read_camera(const std::string& path, int image_id, g2l::CameraIntrinsics* K
         K->cx = num(j.at("cx"), "cx");
         K->cy = num(j.at("cy"), "cy");
     }
-    *scale = j.contains("depth_scale") ? num(j.at("depth_scale"), "depth_scale") : 1.0;
+    // Without depth_scale the depth's units are unknown (BOP: 1 for LM, 0.1 for YCB-Video):
+    // guessing 1 would give a pose 10 times too far.
+    G2L_CHECK(j.contains("depth_scale"), "camera '", path, "': no 'depth_scale' (mm per unit of "
+              "the depth PNG, e.g. 1 or 0.1)");
+    *scale = num(j.at("depth_scale"), "depth_scale");
+    for (const char* key : {"width", "height"})
+        if (j.contains(key)) {
+            const double v = num(j.at(key), key);
+            G2L_CHECK(v >= 1 && v <= 100000 && v == std::floor(v), "camera '", path, "': '", key,
+                      "' must be a positive integer, got ", j.at(key).dump());
+            (key[0] == 'w' ? *width : *height) = int(v);
+        }
     G2L_CHECK(K->fx > 0 && K->fy > 0, "camera '", path, "': focal lengths must be > 0, got fx=",
               K->fx, " fy=", K->fy);
     G2L_CHECK(*scale > 0, "camera '", path, "': depth_scale must be > 0, got ", *scale);
@@ -100,7 +117,7 @@ int main(int argc, char** argv) {
                                       "on the RGB image (or the depth)");
     app.add_option("--models-info", models_info,
                    "BOP models_info.json, for model files that do not store the diameters");
-    app.add_option("--threads", threads, "CPU threads (0 = all)")->check(g2l::cli::at_least(0));
+    app.add_option("--threads", threads, "CPU threads (0 = all)")->check(CLI::Range(0, 1024));
     std::string refine, meshes;
     app.add_option("--refine", refine,
                    "depth refinement against the objects' meshes (needs --meshes): turns (ICP "
@@ -127,6 +144,28 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "g2l_infer: --det-mirror needs --detector FILE\n");
         return g2l::cli::kUsageError;
     }
+    // --box OBJ_ID,X,Y,W,H: five integers that fit the pixel range, W and H > 0 (a bad one is a
+    // bad command line).
+    std::vector<g2l::ObjectBox> hand_boxes;
+    for (const std::string& a : box_args) {
+        long v[5];
+        const char* p = a.c_str();
+        bool good = true;
+        for (int k = 0; k < 5 && good; ++k) {
+            char* end = nullptr;
+            errno = 0;
+            v[k] = std::strtol(p, &end, 10);
+            good = end != p && errno == 0 && v[k] >= -1000000 && v[k] <= 1000000 &&
+                   (k == 4 ? *end == '\0' : *end == ',');
+            p = end + (k < 4 ? 1 : 0);
+        }
+        if (!good || v[3] <= 0 || v[4] <= 0) {
+            std::fprintf(stderr, "g2l_infer: --box '%s': expected OBJ_ID,X,Y,W,H (integers within "
+                                 "+-1000000, W and H > 0)\n", a.c_str());
+            return g2l::cli::kUsageError;
+        }
+        hand_boxes.push_back({int(v[0]), int(v[1]), int(v[2]), int(v[3]), int(v[4]), 1.0});
+    }
     try {
         // Boxes first: a typo there should not wait for the model to load.
         std::vector<g2l::ObjectBox> boxes;
@@ -139,19 +178,16 @@ int main(int argc, char** argv) {
                                  int(std::lround(d.w)), int(std::lround(d.h)), d.score});
             }
         }
-        for (const std::string& a : box_args) {
-            int v[5];
-            char tail = 0;
-            G2L_CHECK(std::sscanf(a.c_str(), "%d,%d,%d,%d,%d%c", &v[0], &v[1], &v[2], &v[3], &v[4],
-                                  &tail) == 5,
-                      "--box '", a, "': expected OBJ_ID,X,Y,W,H (integers)");
-            boxes.push_back({v[0], v[1], v[2], v[3], v[4], 1.0});
-        }
+        for (const g2l::ObjectBox& b : hand_boxes) boxes.push_back(b);
         g2l::CameraIntrinsics K;
         double depth_scale = 1;
-        read_camera(camera_path, image_id, &K, &depth_scale);
+        int cam_w = 0, cam_h = 0;
+        read_camera(camera_path, image_id, &K, &depth_scale, &cam_w, &cam_h);
         int w = 0, h = 0;
         const std::vector<uint16_t> depth = g2l::data::load_depth_png(depth_path, &w, &h);
+        G2L_CHECK((cam_w == 0 || cam_w == w) && (cam_h == 0 || cam_h == h), "--depth '",
+                  depth_path, "' is ", w, " x ", h, " pixels but the camera '", camera_path,
+                  "' is ", cam_w, " x ", cam_h, " (its intrinsics do not hold for this image)");
         g2l::data::Image rgb;
         if (!rgb_path.empty()) {
             rgb = g2l::data::load_rgb_image(rgb_path);
@@ -239,12 +275,16 @@ int main(int argc, char** argv) {
         }
         const std::string text = out.dump(2) + "\n";
         if (out_json.empty()) {
-            std::fputs(text.c_str(), stdout);
+            errno = 0;
+            const bool ok = std::fputs(text.c_str(), stdout) >= 0 && std::fflush(stdout) == 0;
+            G2L_CHECK(ok, "cannot write the JSON to the standard output: ",
+                      errno ? std::strerror(errno) : "write error");
         } else {
             std::ofstream o(out_json);
             o << text;
             o.close();
-            G2L_CHECK(o.good(), "--json '", out_json, "': cannot write the file");
+            G2L_CHECK(o.good(), "--json '", out_json, "': cannot write the file: ",
+                      errno ? std::strerror(errno) : "write error");
         }
         return 0;
     } catch (const std::exception& e) {

@@ -69,6 +69,7 @@ void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::train::I
                 j["trans_err_mm"] = r.trans_mm;
             }
             if (r.seg_iou >= 0) j["seg_iou"] = r.seg_iou;
+            if (r.det_iou >= 0) j["det_iou"] = r.det_iou;
             *jsonl << j.dump() << "\n";
         }
     }

@@ -125,7 +125,7 @@ cat > "$T/dets.json" <<'JSON'
 JSON
 expect 2 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json"
 has "exactly one of --boxes, --box and --detector"
-expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" --box 8,1,2,3
+expect 2 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" --box 8,1,2,3
 has "expected OBJ_ID,X,Y,W,H"
 expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" --box 8,186,132,139,191
 has "for a scene_camera.json give --image-id"
@@ -165,6 +165,26 @@ has "but the depth"
 printf '{"fx": 0, "fy": 500, "cx": 320, "cy": 240, "depth_scale": 0.1}' > "$T/cam0.json"
 expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$T/cam0.json" --box 8,186,132,139,191
 has "focal lengths must be > 0"
+# A camera without depth_scale (the depth's units unknown), a camera whose image size is not the
+# depth's, --box values out of range or not numbers, absurd thread counts, a full disk.
+printf '{"fx": 500, "fy": 500, "cx": 320, "cy": 240}' > "$T/camnoscale.json"
+expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$T/camnoscale.json" --box 8,186,132,139,191
+has "no 'depth_scale'"
+printf '{"fx": 500, "fy": 500, "cx": 160, "cy": 120, "depth_scale": 0.1, "width": 320, "height": 240}' > "$T/camsmall.json"
+expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$T/camsmall.json" --box 8,186,132,139,191
+has "is 640 x 480 pixels but the camera"
+for bad in 1,99999999999,1,10,10 8,1,2,3 8,1,2,0,5 a,b,c,d,e 8,1,2,3,4x; do
+    expect 2 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" --image-id 1 --box "$bad"
+    has "--box '$bad': expected OBJ_ID,X,Y,W,H"
+done
+expect 2 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" --image-id 1 --box 8,186,132,139,191 --threads 100000
+has "--threads"
+if [ -w /dev/full ]; then
+    "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" \
+        --image-id 1 --box 8,186,132,139,191 >/dev/full 2>"$T/err"
+    [ $? -eq 1 ] || fail "g2l_infer > /dev/full: exit 1 expected"
+    has "cannot write the JSON to the standard output: No space left on device"
+fi
 printf '{"fx": 500, "fx": 600, "fy": 500, "cx": 320, "cy": 240}' > "$T/camdup.json"
 expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$T/camdup.json" --box 8,186,132,139,191
 has "duplicate key 'fx'"

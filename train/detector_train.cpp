@@ -467,12 +467,10 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
     data::RenderOutput ro;
     for (size_t fi = 0; fi < frames.size(); ++fi) {
         const data::Frame& fr = ds.frames()[frames[fi]];
-        struct {
-            int w = 0, h = 0;
-        } img;
+        int img_w = 0, img_h = 0;  // the frame's size
         double frame_ms = 0;
         const std::vector<nn::Detection> dets =
-            detect_frame(det, ds, fr, 0.01f, 10, mirror, &img.w, &img.h, &frame_ms);
+            detect_frame(det, ds, fr, 0.01f, 10, mirror, &img_w, &img_h, &frame_ms);
         ms += frame_ms;
         // Visible masks: from the dataset, else rendered from the GT poses of the frame.
         bool rendered = false;
@@ -480,8 +478,8 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
             if (rendered) return;
             rendered = true;
             geom::Intrinsics K = fr.K;
-            K.width = img.w;
-            K.height = img.h;
+            K.width = img_w;
+            K.height = img_h;
             if (!renderer || renderer->intrinsics().width != K.width ||
                 renderer->intrinsics().height != K.height || renderer->intrinsics().fx != K.fx ||
                 renderer->intrinsics().fy != K.fy || renderer->intrinsics().cx != K.cx ||
@@ -548,14 +546,14 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
                     break;
                 }
             const int u = int(std::floor(best->peak_x)), v = int(std::floor(best->peak_y));
-            if (u < 0 || v < 0 || u >= img.w || v >= img.h) continue;
+            if (u < 0 || v < 0 || u >= img_w || v >= img_h) continue;
             bool on = false;
             if (!in.mask_visib_path.empty()) {
                 const data::Image m = ds.load_mask(fr, in);
-                on = m.w == img.w && m.h == img.h && m.data[size_t(v) * size_t(m.w) + size_t(u)] != 0;
+                on = m.w == img_w && m.h == img_h && m.data[size_t(v) * size_t(m.w) + size_t(u)] != 0;
             } else {
                 ensure_render();
-                on = ro.instance[size_t(v) * size_t(img.w) + size_t(u)] == int32_t(k) + 1;
+                on = ro.instance[size_t(v) * size_t(img_w) + size_t(u)] == int32_t(k) + 1;
             }
             row.peak_on_mask += on;
         }

@@ -183,7 +183,8 @@ void depth_features(const float* depth_mm, int w, int h, double fx, double fy, d
         const float v = depth_mm[i];
         z[i] = std::isfinite(v) && v > 0 ? v : 0.f;
     }
-    // Summed-area tables of the measured depth and of the measured count, for the relief.
+    // Summed-area tables of the measured depth and of the measured count, for the window means
+    // of the normals' smoothing and of the relief.
     std::vector<double> sz((size_t(w) + 1) * (size_t(h) + 1), 0.0), sn(sz.size(), 0.0);
     const size_t W1 = size_t(w) + 1;
     for (int y = 0; y < h; ++y)
@@ -195,15 +196,15 @@ void depth_features(const float* depth_mm, int w, int h, double fx, double fy, d
         }
     // The mean measured z in the window of radius `rad` around (x, y) (the pixel's own window
     // holds at least the pixel when it is measured); 0 when none is.
-    auto window_mean = [&](const std::vector<double>& t, int x, int y, int rad, double* count) {
+    auto window_mean = [&](int x, int y, int rad) {
         const int x0 = std::max(0, x - rad), x1 = std::min(w, x + rad + 1);
         const int y0 = std::max(0, y - rad), y1 = std::min(h, y + rad + 1);
         auto rect = [&](const std::vector<double>& q) {
             return q[size_t(y1) * W1 + size_t(x1)] - q[size_t(y0) * W1 + size_t(x1)] -
                    q[size_t(y1) * W1 + size_t(x0)] + q[size_t(y0) * W1 + size_t(x0)];
         };
-        *count = rect(sn);
-        return *count > 0 ? rect(t) / *count : 0.0;
+        const double count = rect(sn);
+        return count > 0 ? rect(sz) / count : 0.0;
     };
     // Normals come from the depth smoothed over (2 kNormalSmooth + 1)^2 measured pixels: the
     // sensor's per-pixel noise would otherwise swamp the slope over a few millimetres.
@@ -211,8 +212,7 @@ void depth_features(const float* depth_mm, int w, int h, double fx, double fy, d
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
             const size_t i = size_t(y) * size_t(w) + size_t(x);
-            double cnt = 0;
-            if (z[i] > 0) zs[i] = float(window_mean(sz, x, y, kNormalSmooth, &cnt));
+            if (z[i] > 0) zs[i] = float(window_mean(x, y, kNormalSmooth));
         }
     auto point = [&](int x, int y, Eigen::Vector3d* p) {
         if (x < 0 || y < 0 || x >= w || y >= h) return false;
@@ -242,9 +242,7 @@ void depth_features(const float* depth_mm, int w, int h, double fx, double fy, d
                 const double v = z[size_t(y) * size_t(w) + size_t(x)];
                 f[0] = 1;
                 f[1] = float(std::clamp((v - 1000.0) / 500.0, -2.0, 4.0));
-                double cnt = 0;
-                const double around = window_mean(sz, x, y, r, &cnt);
-                f[2] = float(std::clamp((v - around) / 30.0, -3.0, 3.0));
+                f[2] = float(std::clamp((v - window_mean(x, y, r)) / 30.0, -3.0, 3.0));
                 Eigen::Vector3d tx, ty;
                 if (tangent(x, y, s, 0, c, &tx) && tangent(x, y, 0, s, c, &ty)) {
                     Eigen::Vector3d nrm = tx.cross(ty);

@@ -399,6 +399,12 @@ Tensor detector_loss(const nn::DetOut& out, const std::vector<DetTargets>& targe
 // ---------------------------------------------------------------- evaluation
 namespace {
 
+// True when the frame has the images the detector's input needs (RGB and / or depth).
+bool has_inputs(const nn::LoadedDetector& det, const data::Frame& fr) {
+    return (!nn::uses_rgb(det.input()) || !fr.rgb_path.empty()) &&
+           (!nn::uses_depth(det.input()) || !fr.depth_path.empty());
+}
+
 // The detector on one dataset frame, fed what its input kind needs (the RGB image, the depth
 // in mm and the frame's intrinsics); *w / *h get the frame size, *ms the detector time.
 std::vector<nn::Detection> detect_frame(const nn::LoadedDetector& det, const data::Dataset& ds,
@@ -449,9 +455,7 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
     std::vector<size_t> frames;
     const bool need_rgb = nn::uses_rgb(det.input()), need_depth = nn::uses_depth(det.input());
     for (size_t f = 0; f < ds.frames().size(); ++f)
-        if ((!need_rgb || !ds.frames()[f].rgb_path.empty()) &&
-            (!need_depth || !ds.frames()[f].depth_path.empty()))
-            frames.push_back(f);
+        if (has_inputs(det, ds.frames()[f])) frames.push_back(f);
     G2L_CHECK(!frames.empty(), "evaluate_detector: the dataset '", ds.root(),
               "' has no frame with the ", need_rgb ? "RGB" : "", need_rgb && need_depth ? " and " : "",
               need_depth ? "depth" : "", " image the ", nn::to_string(det.input()),
@@ -585,9 +589,8 @@ std::vector<data::Detection> run_detector_on(const nn::LoadedDetector& det, cons
                                              float min_score, bool mirror) {
     G2L_CHECK(det.net, "run_detector_on: no network");
     std::vector<data::Detection> out;
-    const bool need_rgb = nn::uses_rgb(det.input()), need_depth = nn::uses_depth(det.input());
     for (const data::Frame& fr : ds.frames()) {
-        if ((need_rgb && fr.rgb_path.empty()) || (need_depth && fr.depth_path.empty())) continue;
+        if (!has_inputs(det, fr)) continue;
         int scene_id = -1;
         try {
             scene_id = std::stoi(fr.scene);

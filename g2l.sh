@@ -58,11 +58,11 @@ case "$cmd" in
         build --target g2l_train --target g2l_eval
         run_dir=${G2L_DEMO_RUN:-runs/demo}
         rm -rf "$run_dir"
-        "./$BUILD_DIR/train/g2l_train" --config configs/demo_cpu.json --set "run_dir=$run_dir" "$@"
-        "./$BUILD_DIR/train/g2l_eval" --checkpoint "$run_dir/last.g2l" --config configs/demo_cpu.json \
+        "./$BUILD_DIR/apps/g2l_train" --config configs/demo_cpu.json --set "run_dir=$run_dir" "$@"
+        "./$BUILD_DIR/apps/g2l_eval" --checkpoint "$run_dir/last.g2l" --config configs/demo_cpu.json \
             --json "$run_dir/eval.json"
         echo "== the main job: detector -> pose -> refinement on the real fixture frames (no ground-truth box)"
-        "./$BUILD_DIR/train/g2l_eval" --checkpoint models/ycbv_sim2real.g2l \
+        "./$BUILD_DIR/apps/g2l_eval" --checkpoint models/ycbv_sim2real.g2l \
             --detector models/ycbv_detector.g2l --boxes det --root tests/data/ycbv_mini \
             --split train_real --json "$run_dir/eval_pipeline.json" --vis "$run_dir/vis"
         pic=$(ls "$run_dir"/vis/0*.png | head -n 1)
@@ -76,11 +76,11 @@ case "$cmd" in
         ;;
     toy)
         build
-        exec "./$BUILD_DIR/train/g2l_demo" "$@"
+        exec "./$BUILD_DIR/apps/g2l_demo" "$@"
         ;;
     bench)
         build
-        exec "./$BUILD_DIR/train/g2l_bench" "$@"
+        exec "./$BUILD_DIR/apps/g2l_bench" "$@"
         ;;
     help|-h|--help)
         sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//'

@@ -81,6 +81,19 @@ const std::pair<Eigen::Vector3d, std::vector<geom::StablePose>>& cached_stable_p
     return it->second;
 }
 
+/// The stable pose with the highest centre of mass, improbable ones included (stable_poses
+/// drops those under 1% by default: a marker standing on its cap is one).
+geom::StablePose tallest_stable_pose(const geom::Mesh& mesh, const Eigen::Vector3d& com) {
+    geom::StablePoseOptions opt;
+    opt.min_probability = 0;
+    const std::vector<geom::StablePose> all = geom::stable_poses(mesh, com, opt);
+    G2L_CHECK(!all.empty(), "SceneGenerator: mesh '", mesh.path, "' has no stable pose");
+    geom::StablePose best = all.front();
+    for (const geom::StablePose& p : all)
+        if (p.height > best.height) best = p;
+    return best;
+}
+
 }  // namespace
 
 void validate(const SceneConfig& c, const std::string& where) {
@@ -122,6 +135,21 @@ void validate(const SceneConfig& c, const std::string& where) {
               c.camera_elevation[0], ", ", c.camera_elevation[1], "]");
     G2L_CHECK(std::isfinite(c.upright_prob) && c.upright_prob >= 0 && c.upright_prob <= 1, where,
               ": upright_prob must be in [0, 1], got ", c.upright_prob);
+    for (const auto& [name, p] : {std::pair<const char*, double>{"tall_prob", c.tall_prob},
+                                  {"on_block_prob", c.on_block_prob},
+                                  {"lean_prob", c.lean_prob}}) {
+        G2L_CHECK(std::isfinite(p) && p >= 0 && p <= 1, where, ": ", name,
+                  " must be in [0, 1], got ", p);
+    }
+    G2L_CHECK(c.blocks_min >= 0 && c.blocks_min <= c.blocks_max && c.blocks_max <= 16, where,
+              ": need 0 <= blocks_min <= blocks_max <= 16, got ", c.blocks_min, ", ",
+              c.blocks_max);
+    G2L_CHECK(std::isfinite(c.block_size_mm[0]) && std::isfinite(c.block_size_mm[1]) &&
+                  c.block_size_mm[0] > 0 && c.block_size_mm[0] <= c.block_size_mm[1],
+              where, ": block_size_mm must be [min, max] with 0 < min <= max (mm), got [",
+              c.block_size_mm[0], ", ", c.block_size_mm[1], "]");
+    G2L_CHECK(std::isfinite(c.lean_max_deg) && c.lean_max_deg >= 0 && c.lean_max_deg <= 90, where,
+              ": lean_max_deg must be in [0, 90] degrees, got ", c.lean_max_deg);
     G2L_CHECK(c.camera_roll_max >= 0 && c.camera_roll_max <= 180, where,
               ": camera_roll_max must be in [0, 180] degrees, got ", c.camera_roll_max);
     G2L_CHECK(c.table_spread_mm >= 0 && std::isfinite(c.table_spread_mm), where,
@@ -152,7 +180,7 @@ SceneGenerator::SceneGenerator(const SceneConfig& cfg, std::vector<SceneModel> m
                                  .rowwise()
                                  .squaredNorm()
                                  .maxCoeff()));
-        ModelGeom g{m.obj_id, m.mesh, c, std::max(r, 1e-3), c, {}};
+        ModelGeom g{m.obj_id, m.mesh, c, std::max(r, 1e-3), c, {}, -1, {}};
         if (cfg_.pose_mode == "resting") {
             const auto& sp = cached_stable_poses(*m.mesh);
             g.com = sp.first;
@@ -163,6 +191,7 @@ SceneGenerator::SceneGenerator(const SceneConfig& cfg, std::vector<SceneModel> m
                     best = -double(g.stable[i].down.z());
                     g.upright = int(i);
                 }
+            if (cfg_.tall_prob > 0) g.tall = tallest_stable_pose(*m.mesh, g.com);
         }
         models_.push_back(std::move(g));
     }
@@ -368,6 +397,36 @@ std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_resting(
     // World frame: the table is z = 0, z points up.
     std::vector<std::pair<Eigen::Vector3d, double>> world;  // centre (world) and radius
     std::vector<geom::Pose> pose_w;
+    // Blocks first: footprint centre, yaw and edge lengths. They keep apart from each other by
+    // their inscribed footprint radius, and objects keep that distance from them too, so an
+    // object may touch a block (or lean on it) but not sink into its middle.
+    struct Block {
+        Eigen::Vector2d xy;
+        double yaw;
+        Eigen::Vector3d size;
+    };
+    std::vector<Block> blocks;
+    if (cfg_.blocks_max > 0) {
+        const int nb = int(rng.randint(cfg_.blocks_min, cfg_.blocks_max + 1));
+        for (int b = 0; b < nb; ++b) {
+            Block blk;
+            for (int a = 0; a < 3; ++a)
+                blk.size[a] = rng.uniform(cfg_.block_size_mm[0], cfg_.block_size_mm[1]);
+            blk.yaw = rng.uniform(0, 360) * kDeg;
+            const double r = 0.5 * std::min(blk.size.x(), blk.size.y());
+            for (int attempt = 0; attempt < 100; ++attempt) {
+                const double rad = cfg_.table_spread_mm * std::sqrt(rng.uniform());
+                const double ang = rng.uniform(0, 360) * kDeg;
+                blk.xy = Eigen::Vector2d(rad * std::cos(ang), rad * std::sin(ang));
+                bool ok = true;
+                for (const Block& o : blocks)
+                    ok = ok && (blk.xy - o.xy).norm() >=
+                                   cfg_.separation * (r + 0.5 * std::min(o.size.x(), o.size.y()));
+                if (ok) break;
+            }
+            blocks.push_back(blk);
+        }
+    }
     for (size_t k = 0; k < chosen.size(); ++k) {
         const ModelGeom& m = model(chosen[k]);
         // A stable pose drawn with its probability, then a random yaw.
@@ -383,22 +442,58 @@ std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_resting(
         if (cfg_.upright_prob > 0 && k < size_t(n_targets) && m.upright >= 0 &&
             rng.uniform() < cfg_.upright_prob)
             sp = size_t(m.upright);
+        const geom::StablePose* rest = &m.stable[sp];
+        if (cfg_.tall_prob > 0 && k < size_t(n_targets) && rng.uniform() < cfg_.tall_prob)
+            rest = &m.tall;
         const double yaw = rng.uniform(0, 360) * kDeg;
-        const Eigen::Matrix3d R = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
-                                  geom::resting_rotation(m.stable[sp]);
+        Eigen::Matrix3d R = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+                            geom::resting_rotation(*rest);
+        bool lean = false;
+        if (cfg_.lean_prob > 0 && rng.uniform() < cfg_.lean_prob) {
+            const double axis = rng.uniform(0, 360) * kDeg;
+            const double tilt = rng.uniform(0, cfg_.lean_max_deg) * kDeg;
+            R = Eigen::AngleAxisd(tilt, Eigen::Vector3d(std::cos(axis), std::sin(axis), 0))
+                    .toRotationMatrix() *
+                R;
+            lean = true;
+        }
+        int on = -1;  // the block it rests on
+        if (!blocks.empty() && cfg_.on_block_prob > 0 && rng.uniform() < cfg_.on_block_prob)
+            on = int(rng.below(blocks.size()));
         Eigen::Vector2d xy = Eigen::Vector2d::Zero();
         for (int attempt = 0; attempt < 100; ++attempt) {
-            const double rad = cfg_.table_spread_mm * std::sqrt(rng.uniform());
-            const double ang = rng.uniform(0, 360) * kDeg;
-            xy = Eigen::Vector2d(rad * std::cos(ang), rad * std::sin(ang));
+            if (on >= 0) {  // somewhere on the top face's central half
+                const Block& b = blocks[size_t(on)];
+                const Eigen::Vector2d local(rng.uniform(-0.25, 0.25) * b.size.x(),
+                                            rng.uniform(-0.25, 0.25) * b.size.y());
+                xy = b.xy + Eigen::Rotation2Dd(b.yaw) * local;
+            } else {
+                const double rad = cfg_.table_spread_mm * std::sqrt(rng.uniform());
+                const double ang = rng.uniform(0, 360) * kDeg;
+                xy = Eigen::Vector2d(rad * std::cos(ang), rad * std::sin(ang));
+            }
             bool ok = true;
             for (const auto& [q, r] : world)
                 ok = ok && (xy - q.head<2>()).norm() >= cfg_.separation * (r + m.radius);
+            for (size_t b = 0; b < blocks.size() && on < 0; ++b)
+                ok = ok && (xy - blocks[b].xy).norm() >=
+                               0.5 * std::min(blocks[b].size.x(), blocks[b].size.y());
             if (ok) break;
         }
+        const double base = on >= 0 ? blocks[size_t(on)].size.z() : 0.0;
         geom::Pose pw;
         pw.R = R;
-        pw.t = Eigen::Vector3d(xy.x(), xy.y(), m.stable[sp].height) - R * m.com;
+        if (lean) {  // lowest vertex on the support
+            const geom::Points& V = m.mesh->vertices;
+            const Eigen::Vector3f r2 = R.row(2).cast<float>().transpose();
+            const Eigen::Index step = std::max<Eigen::Index>(1, V.rows() / 20000);
+            double lo = 1e30;
+            for (Eigen::Index i = 0; i < V.rows(); i += step)
+                lo = std::min(lo, double(V.row(i).dot(r2.transpose())));
+            pw.t = Eigen::Vector3d(xy.x(), xy.y(), base - lo);
+        } else {
+            pw.t = Eigen::Vector3d(xy.x(), xy.y(), base + rest->height) - R * m.com;
+        }
         pose_w.push_back(pw);
         world.emplace_back(pw.R * m.center + pw.t, m.radius);
     }
@@ -437,6 +532,18 @@ std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_resting(
         obj.default_color = cfg_.object_color;
         objects_.push_back(obj);
         placed.emplace_back(Rcw * (world[k].first - C), m.radius);
+    }
+    blocks_.clear();
+    for (const Block& b : blocks) blocks_.push_back(make_box(b.size.x(), b.size.y(), b.size.z()));
+    for (size_t b = 0; b < blocks.size(); ++b) {
+        RenderObject obj;
+        obj.mesh = &blocks_[b];
+        obj.pose.R = Rcw * Eigen::AngleAxisd(blocks[b].yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+        obj.pose.t = Rcw * (Eigen::Vector3d(blocks[b].xy.x(), blocks[b].xy.y(), 0.5 * blocks[b].size.z()) - C);
+        obj.instance_id = -1;
+        const uint8_t grey = uint8_t(rng.randint(60, 220));
+        obj.default_color = {grey, uint8_t(std::min(255, grey + int(rng.randint(0, 30)))), grey};
+        objects_.push_back(obj);
     }
     // The table: a square in z = 0 centred under the look-at point, normal towards the camera.
     RenderObject table;

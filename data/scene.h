@@ -70,6 +70,24 @@ struct SceneConfig {
     /// stand a bottle up where a drop would lay it down: the LINEMOD glue stands on its base in
     /// 3.5% of random drops and in every LM-O photograph. Distractors keep the drop prior.
     double upright_prob = 0;
+    /// "resting" mode: per target, the probability that it stands in its tallest stable pose
+    /// (greatest centre-of-mass height, drop probability ignored): a marker on its cap, a box on
+    /// its smallest face — poses people choose and random drops almost never give. Applied after
+    /// upright_prob (it wins when both fire). 0 draws nothing, so older configs give the same frames.
+    double tall_prob = 0;
+    /// "resting" mode: unannotated cuboid blocks on the table (edge lengths uniform in
+    /// block_size_mm, random yaw and grey level), drawn before the objects: the wooden block of
+    /// YCB-Video, boxes, books. They are distractors (instance id -1).
+    int blocks_min = 0, blocks_max = 0;
+    std::array<double, 2> block_size_mm{{40, 200}};
+    /// Per object, the probability that it rests on top of a block (when the frame has one)
+    /// instead of on the table.
+    double on_block_prob = 0;
+    /// Per object, the probability that it leans: its resting rotation tilted about a random
+    /// horizontal axis by up to lean_max_deg, then lowered until its lowest vertex touches its
+    /// support — an object propped against another, as real tables show.
+    double lean_prob = 0;
+    double lean_max_deg = 30;
 };
 
 /// Throws g2l::Error naming the field and value for any invalid setting (`where` prefixes the
@@ -140,6 +158,7 @@ private:
         Eigen::Vector3d com;     ///< centre of mass (resting mode)
         std::vector<geom::StablePose> stable;  ///< stable poses (resting mode)
         int upright = -1;  ///< the stable pose nearest "model -z down" (within 30 deg), or -1
+        geom::StablePose tall;  ///< the stable pose with the highest centre of mass (tall_prob > 0)
     };
     /// Places objects_ (and the table) for a "resting" frame; returns each object's centre
     /// and radius in camera coordinates.
@@ -154,6 +173,7 @@ private:
     RenderOutput full_, solo_;
     geom::Mesh plane_;
     geom::Points plane_unit_;  ///< plane vertices for a unit-size quad
+    std::vector<geom::Mesh> blocks_;  ///< this frame's blocks (objects_ points into it)
     std::vector<RenderObject> objects_;
     std::vector<float> noise_scratch_;
 };

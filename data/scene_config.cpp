@@ -148,6 +148,13 @@ SceneConfig parse_scene_config(const std::string& json_text, const std::string& 
         {"camera_elevation", as_array2(c.camera_elevation)},
         {"camera_roll_max", as_double(c.camera_roll_max)},
         {"upright_prob", as_double(c.upright_prob)},
+        {"tall_prob", as_double(c.tall_prob)},
+        {"blocks_min", as_int(c.blocks_min)},
+        {"blocks_max", as_int(c.blocks_max)},
+        {"block_size_mm", as_array2(c.block_size_mm)},
+        {"on_block_prob", as_double(c.on_block_prob)},
+        {"lean_prob", as_double(c.lean_prob)},
+        {"lean_max_deg", as_double(c.lean_max_deg)},
         {"table_spread_mm", as_double(c.table_spread_mm)},
         {"look_at_jitter_mm", as_double(c.look_at_jitter_mm)},
         {"table_size_mm", as_double(c.table_size_mm)},
@@ -215,6 +222,13 @@ std::string scene_config_to_json(const SceneConfig& c) {
     j["camera_elevation"] = c.camera_elevation;
     j["camera_roll_max"] = c.camera_roll_max;
     j["upright_prob"] = c.upright_prob;
+    j["tall_prob"] = c.tall_prob;
+    j["blocks_min"] = c.blocks_min;
+    j["blocks_max"] = c.blocks_max;
+    j["block_size_mm"] = c.block_size_mm;
+    j["on_block_prob"] = c.on_block_prob;
+    j["lean_prob"] = c.lean_prob;
+    j["lean_max_deg"] = c.lean_max_deg;
     j["table_spread_mm"] = c.table_spread_mm;
     j["look_at_jitter_mm"] = c.look_at_jitter_mm;
     j["table_size_mm"] = c.table_size_mm;

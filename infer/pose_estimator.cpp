@@ -1,9 +1,8 @@
 // SPDX-License-Identifier: MIT
-// g2l::PoseEstimator: the crop step (geometry/crop.h, shared with training samples and
-// g2l_eval) in front of the compiled networks (nn::PoseEngine), behind a header of plain types.
+// g2l::PoseEstimator: the frame pipeline (infer/frame_pipeline.h: crop → networks → refinement,
+// the code g2l_eval runs too) and the detector, behind a header of plain types.
 #include "g2l/pose_estimator.h"
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -12,29 +11,17 @@
 
 #include "core/error.h"
 #include "core/threads.h"
-#include "geometry/camera.h"
-#include "geometry/crop.h"
-#include "geometry/labels.h"
 #include "geometry/mesh_io.h"
 #include "geometry/model_info.h"
-#include "geometry/refine.h"
+#include "infer/frame_pipeline.h"
 #include "nn/models/detector.h"
 #include "nn/models/g2l_io.h"
-#include "nn/models/g2l_engine.h"
-#include "nn/models/g2l_pose.h"
 
 #ifndef G2L_VERSION_STRING
 #define G2L_VERSION_STRING "0.0.0"
 #endif
 
 namespace g2l {
-
-namespace {
-using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t0) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-}  // namespace
 
 const char* version() { return G2L_VERSION_STRING; }
 
@@ -64,25 +51,13 @@ struct PoseEstimator::Impl {
     std::string path;
     nn::LoadedModel model;
     EstimatorOptions options;
-    int crop_points = 0, object_points = 1;
-    std::unique_ptr<nn::PoseEngine> engine;  // the compiled networks (fast path)
-    std::unique_ptr<nn::LoadedDetector> detector;  // EstimatorOptions::detector
+    std::unique_ptr<infer::FramePipeline> pipeline;  // crop → networks → refinement
+    std::unique_ptr<nn::LoadedDetector> detector;    // EstimatorOptions::detector
     std::mutex mutex;
     // Per-frame buffers, reused between frames.
     std::vector<float> depth_mm;  // the frame's depth in mm
-    std::vector<geom::Points> crops;
-    std::vector<nn::PoseQuery> queries;
-    std::vector<size_t> query_box;  // box index of each query
-    std::vector<nn::PoseEstimate> results;
-    std::vector<std::vector<int>> object_rows;  // per query: the crop rows taken as object
-    // EstimatorOptions::refine: each object's mesh surface (model frame) and box.
-    struct Mesh {
-        std::unique_ptr<geom::ModelKdTree> tree;
-        geom::Points normals;  // of the tree points (point-to-plane ICP)
-        geom::ClosestPointGrid grid;  // nearest tree point per cell (the ICP's fast lookups)
-        geom::ModelInfo info;
-    };
-    std::map<int, Mesh> meshes;
+    std::vector<infer::PoseRequest> requests;
+    std::vector<infer::PoseOutcome> outcomes;
 };
 
 PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptions& options)
@@ -111,38 +86,14 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
     m.model = nn::load_model(model_path);
     if (!options.detector.empty())
         m.detector = std::make_unique<nn::LoadedDetector>(nn::load_detector(options.detector));
-    m.engine = std::make_unique<nn::PoseEngine>(*m.model.net);
-    m.crop_points = options.crop_points >= 0 ? options.crop_points : m.model.points;
-    m.object_points = options.object_points >= 1 ? options.object_points : m.model.seg_points;
+    std::map<int, geom::ModelInfo> infos;  // EstimatorOptions::models_info
     if (!options.models_info.empty()) {
-        const auto infos = geom::load_models_info_json(options.models_info);
+        infos = geom::load_models_info_json(options.models_info);
         for (const auto& [id, cls] : m.model.class_of) {
             (void)cls;
             if (!m.model.objects.count(id) && infos.count(id))
                 m.model.objects[id] = {infos.at(id).diameter, infos.at(id).symmetric};
         }
-    }
-    if (m.options.refine != Refinement::none) {
-        // The meshes of the model's objects found in the folder (an object without one keeps
-        // the networks' pose: ObjectPose::refined tells).
-        std::error_code ec;
-        G2L_CHECK(std::filesystem::is_directory(options.meshes, ec),
-                  "PoseEstimator: EstimatorOptions::meshes '", options.meshes, "' is not a folder");
-        for (const auto& [id, cls] : m.model.class_of) {
-            (void)cls;
-            char name[32];
-            std::snprintf(name, sizeof name, "/obj_%06d.ply", id);
-            const std::string file = options.meshes + name;
-            if (!std::filesystem::exists(file, ec)) continue;
-            const geom::Mesh mesh = geom::load_mesh(file);
-            Impl::Mesh& me = m.meshes[id];
-            me.tree = std::make_unique<geom::ModelKdTree>(geom::ModelKdTree::from_mesh(mesh));
-            me.normals = me.tree->normals();
-            me.info = geom::compute_model_info(mesh.vertices);
-            me.grid = geom::ClosestPointGrid::for_refine(*me.tree, me.info);
-        }
-        G2L_CHECK(!m.meshes.empty(), "PoseEstimator: EstimatorOptions::meshes '", options.meshes,
-                  "' has no obj_NNNNNN.ply mesh of the model's objects");
     }
     for (const auto& [id, cls] : m.model.class_of) {
         (void)cls;
@@ -150,6 +101,36 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
                   "' does not store the diameter of object ", id,
                   " (a file written before 2026-12-02): give a BOP models_info.json in "
                   "EstimatorOptions::models_info, or re-export it with g2l_train --export");
+    }
+    infer::PipelineOptions po;
+    po.crop_points = options.crop_points;
+    po.object_points = options.object_points;
+    po.refine = m.options.refine == Refinement::turns ? infer::Refine::turns
+                : m.options.refine == Refinement::icp ? infer::Refine::icp
+                                                      : infer::Refine::none;
+    m.pipeline = std::make_unique<infer::FramePipeline>(infer::PipelineModel::of(m.model), po);
+    if (po.refine != infer::Refine::none) {
+        // The meshes of the model's objects found in the folder (an object without one keeps
+        // the networks' pose: ObjectPose::refined tells). Their box and diameter: the
+        // models_info.json entry when one is given, else measured on the mesh.
+        std::error_code ec;
+        G2L_CHECK(std::filesystem::is_directory(options.meshes, ec),
+                  "PoseEstimator: EstimatorOptions::meshes '", options.meshes, "' is not a folder");
+        int found = 0;
+        for (const auto& [id, cls] : m.model.class_of) {
+            (void)cls;
+            char name[32];
+            std::snprintf(name, sizeof name, "/obj_%06d.ply", id);
+            const std::string file = options.meshes + name;
+            if (!std::filesystem::exists(file, ec)) continue;
+            const geom::Mesh mesh = geom::load_mesh(file);
+            m.pipeline->add_mesh(id, mesh,
+                                 infos.count(id) ? infos.at(id)
+                                                 : geom::compute_model_info(mesh.vertices));
+            ++found;
+        }
+        G2L_CHECK(found > 0, "PoseEstimator: EstimatorOptions::meshes '", options.meshes,
+                  "' has no obj_NNNNNN.ply mesh of the model's objects");
     }
 }
 
@@ -217,95 +198,48 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
     geom::Intrinsics K;
     K.fx = f.K.fx, K.fy = f.K.fy, K.cx = f.K.cx, K.cy = f.K.cy;
     K.width = f.width, K.height = f.height;
-
-    // 1. The crop of every box (geometry/crop.h, the step training samples use too).
-    std::vector<ObjectPose> out(boxes.size());
-    if (m.crops.size() < boxes.size()) m.crops.resize(boxes.size());
-    m.queries.clear();
-    m.query_box.clear();
+    m.requests.resize(boxes.size());
     for (size_t i = 0; i < boxes.size(); ++i) {
         const ObjectBox& b = boxes[i];
-        const auto t0 = Clock::now();
+        infer::PoseRequest& r = m.requests[i];
+        r = infer::PoseRequest{};
+        r.obj_id = b.obj_id;
+        r.box = {b.x, b.y, b.w, b.h};
+        r.peak_x = b.peak_x, r.peak_y = b.peak_y;
+    }
+    m.pipeline->run(depth, K, m.requests, &m.outcomes);
+    std::vector<ObjectPose> out(boxes.size());
+    for (size_t i = 0; i < boxes.size(); ++i) {
+        const infer::PoseOutcome& o = m.outcomes[i];
         ObjectPose& p = out[i];
-        p.obj_id = b.obj_id;
-        p.score = b.score;
-        const auto cls = m.model.class_of.find(b.obj_id);
-        if (cls == m.model.class_of.end()) {
-            p.status = PoseStatus::unknown_object;
-            continue;
+        p.obj_id = boxes[i].obj_id;
+        p.score = boxes[i].score;
+        switch (o.status) {
+            case infer::PoseStatus::ok: p.status = PoseStatus::ok; break;
+            case infer::PoseStatus::unknown_object: p.status = PoseStatus::unknown_object; break;
+            case infer::PoseStatus::box_outside_image: p.status = PoseStatus::box_outside_image; break;
+            case infer::PoseStatus::no_depth: p.status = PoseStatus::no_depth; break;
+            case infer::PoseStatus::too_few_points: p.status = PoseStatus::too_few_points; break;
+            case infer::PoseStatus::too_few_object_points:
+                p.status = PoseStatus::too_few_object_points;
+                break;
         }
-        const geom::Box2i box = geom::clip_box({b.x, b.y, b.w, b.h}, f.width, f.height);
-        if (box.empty()) {
-            p.status = PoseStatus::box_outside_image;
-            continue;
-        }
-        Eigen::Vector3d centre;
-        const bool have_centre =
-            b.peak_x >= 0 && b.peak_y >= 0
-                ? geom::peak_centre(depth, f.width, f.height, K, box, b.peak_x, b.peak_y, &centre)
-                : geom::box_centre(depth, f.width, f.height, K, box, &centre);
-        if (!have_centre) {
-            p.status = PoseStatus::no_depth;
-            p.timings.crop_ms = p.timings.total_ms = ms_since(t0);
-            continue;
-        }
-        const geom::Points pts = geom::depth_to_points(depth, f.width, f.height, K, box);
-        const double radius = m.model.radius_scale * m.model.objects.at(b.obj_id).diameter;
-        geom::Points& crop = m.crops[i];
-        crop = geom::crop_points(m.model.crop, pts, centre, radius);
-        p.num_crop_points = int(crop.rows());
-        p.timings.crop_ms = ms_since(t0);
-        m.queries.push_back({&crop, cls->second, &m.model.keypoints[size_t(cls->second)]});
-        m.query_box.push_back(i);
-    }
-    // 2. The networks for all boxes of the frame at once (nn::PoseEngine).
-    const bool refine = m.options.refine != Refinement::none;
-    if (refine) {
-        m.object_rows.resize(m.queries.size());
-        for (size_t q = 0; q < m.queries.size(); ++q) m.queries[q].object_rows = &m.object_rows[q];
-    }
-    if (!m.queries.empty()) m.engine->estimate(m.queries, m.object_points, m.crop_points, &m.results);
-    for (size_t q = 0; q < m.queries.size(); ++q) {
-        const nn::PoseEstimate& est = m.results[q];
-        ObjectPose& p = out[m.query_box[q]];
-        p.timings.segmentation_ms = est.ms_seg;
-        p.timings.translation_ms = est.ms_t;
-        p.timings.rotation_ms = est.ms_rot;
-        p.num_object_points = est.num_object_points;
-        if (!est.ok) {
-            p.status = est.status == "too few crop points" ? PoseStatus::too_few_points
-                                                           : PoseStatus::too_few_object_points;
-        } else {
-            nn::PoseEstimate& e = m.results[q];
-            if (refine) {
-                // 3. Depth refinement against the mesh (geometry/refine.h).
-                const auto t0 = Clock::now();
-                const std::vector<int>& rows = m.object_rows[q];
-                const geom::Points& crop = *m.queries[q].crop;
-                geom::Points obs(int64_t(rows.size()), 3);
-                for (size_t i = 0; i < rows.size(); ++i) obs.row(int64_t(i)) = crop.row(rows[i]);
-                const auto mesh_it = m.meshes.find(p.obj_id);
-                if (obs.rows() >= 3 && mesh_it != m.meshes.end()) {
-                    const Impl::Mesh& me = mesh_it->second;
-                    geom::RefineOptions ro;
-                    ro.hypotheses = m.options.refine == Refinement::turns;
-                    const geom::DepthImage di{depth, K};
-                    const geom::RefineResult rr =
-                        geom::refine_pose(*me.tree, me.info, obs, e.pose, ro, &di, &me.normals,
-                                          &me.grid);
-                    e.pose = rr.pose;
-                    p.fit_mm = rr.fit_mm;
-                    p.refined = true;
-                }
-                p.timings.refine_ms = ms_since(t0);
-            }
+        p.num_crop_points = o.num_crop_points;
+        p.num_object_points = o.num_object_points;
+        p.timings.crop_ms = o.ms_crop;
+        p.timings.segmentation_ms = o.ms_seg;
+        p.timings.translation_ms = o.ms_t;
+        p.timings.rotation_ms = o.ms_rot;
+        p.timings.refine_ms = o.ms_refine;
+        p.timings.total_ms = o.ms_crop + o.ms_seg + o.ms_t + o.ms_rot + o.ms_refine;
+        p.refined = o.refined;
+        p.fit_mm = o.fit_mm;
+        if (o.ok()) {
             for (int r = 0; r < 3; ++r) {
-                for (int c = 0; c < 3; ++c) p.R[size_t(r * 3 + c)] = est.pose.R(r, c);
-                p.t[size_t(r)] = est.pose.t[r];
+                for (int c = 0; c < 3; ++c) p.R[size_t(r * 3 + c)] = o.pose.R(r, c);
+                p.t[size_t(r)] = o.pose.t[r];
             }
         }
-        p.timings.total_ms =
-            p.timings.crop_ms + est.ms_seg + est.ms_t + est.ms_rot + p.timings.refine_ms;
     }
     return out;
 }

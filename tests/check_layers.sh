@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Fails if a layer includes a layer above it (docs/architecture.md):
-#   core <- kernels <- nn <- {train, infer};  core <- geometry <- {nn, data}; data <- train;
-#   apps (command-line programs on the library) <- nothing; train/infer never include each other,
-#   and infer (the embeddable library) includes neither data nor train.
+#   core <- kernels <- nn <- infer <- eval <- train <- tools <- apps;  core <- geometry <- {nn, data};
+#   data <- {eval, train}; infer (the frame pipeline and the embeddable library) includes neither
+#   data, eval, train nor tools; nothing includes apps.
 set -u
 root=${1:-.}
 status=0
@@ -16,14 +16,14 @@ check() {  # check <dir> <forbidden include prefixes...>
         fi
     done
 }
-check core kernels nn geometry data train infer
-check kernels nn geometry data train infer
-check nn data train infer
-check geometry kernels nn data train infer
-check data kernels nn train infer
-check train infer
-check infer train data apps
-check train apps
-check nn apps
+check core kernels nn geometry data infer eval train tools apps
+check kernels nn geometry data infer eval train tools apps
+check nn data infer eval train tools apps
+check geometry kernels nn data infer eval train tools apps
+check data kernels nn infer eval train tools apps
+check infer data eval train tools apps
+check eval train tools apps
+check train tools apps
+check tools apps
 [ $status -eq 0 ] && echo "layers ok"
 exit $status

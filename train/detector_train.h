@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-// Training and evaluating the 2D detector (nn/models/detector.h) of G2L-Net's global
+// Training the 2D detector (nn/models/detector.h) of G2L-Net's global
 // localization: RGB renders of coloured meshes (data/scene.h) with colour, noise, blur and
 // grey-scale augmentation, CenterNet targets (a Gaussian peak per object centre, log box size and
 // sub-cell offset at the centre cell), the penalty-reduced focal loss, Adam; the run directory,
@@ -17,6 +17,7 @@
 #include "data/detections.h"
 #include "data/scene.h"
 #include "nn/models/detector.h"
+#include "eval/detector_eval.h"
 #include "train/trainer.h"
 
 namespace g2l::train {
@@ -133,48 +134,6 @@ Tensor detector_loss(const nn::DetOut& out, const std::vector<DetTargets>& targe
                      double w_heat, double w_size, double w_offset, double* heat_loss = nullptr,
                      double* size_loss = nullptr, double* offset_loss = nullptr);
 
-/// Detector evaluation on real frames with GT boxes.
-struct DetectorEvalRow {
-    int obj_id = 0;
-    int instances = 0;      ///< GT instances (visib_fract >= min_visib)
-    int found = 0;          ///< the class's best detection overlaps the GT box with IoU >= 0.5
-    int found_top3 = 0;     ///< one of the class's three best detections does (ranking aside)
-    int peak_on_mask = 0;   ///< the class's best detection peaks on the instance's visible mask
-    int detections = 0;     ///< detections of this class with score >= score_threshold
-    int true_detections = 0;  ///< ... matched one-to-one to a GT box of the class (IoU >= 0.5)
-    double recall() const { return instances ? double(found) / instances : 0; }
-    double recall_top3() const { return instances ? double(found_top3) / instances : 0; }
-    double precision() const { return detections ? double(true_detections) / detections : 0; }
-    double peak_rate() const { return instances ? double(peak_on_mask) / instances : 0; }
-};
-struct DetectorEvalResult {
-    std::vector<DetectorEvalRow> rows;  ///< per object, in class order
-    DetectorEvalRow total;              ///< sums over objects (obj_id 0)
-    double mean_recall = 0, mean_precision = 0, mean_peak_rate = 0;  ///< mean over objects
-    double mean_recall_top3 = 0;
-    int frames = 0;
-    double ms_per_frame = 0;            ///< detector time (input + network + decoding)
-};
-
-/// Evaluates on every frame of `ds` that has an RGB image (instances of the detector's objects
-/// with visib_fract >= min_visib). The visible masks come from the dataset when it has them,
-/// else from rendering the GT-posed models of the frame (the annotated objects occlude each
-/// other; unannotated clutter is not modelled, so such masks can be larger than the truth).
-DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::Dataset& ds,
-                                     double min_visib = 0.1, float score_threshold = 0.3f,
-                                     int max_frames = 0, bool progress = false,
-                                     bool mirror = false);
-/// The detector on every frame of `ds` that has an RGB image: one data::Detection per class
-/// peak (scene_id from the scene folder name, image_id, obj_id, box, score, heat-map peak, the
-/// frame's detector time), as g2l_eval --boxes det feeds them to the pose evaluation. Throws
-/// for a scene name that is not a number (BOP scene ids are). `mirror`: nn::detect's
-/// mirrored second pass (both functions).
-std::vector<data::Detection> run_detector_on(const nn::LoadedDetector& det, const data::Dataset& ds,
-                                             float min_score = 0.05f, bool mirror = false);
-
-/// The table of a result (per object and mean), plain text.
-std::string detector_eval_table(const DetectorEvalResult& r);
-
 struct DetectorTrainSummary {
     std::string run_dir;
     int64_t steps = 0;
@@ -182,7 +141,7 @@ struct DetectorTrainSummary {
     double images_per_s = 0;
     double final_loss = 0;
     bool evaluated = false;
-    DetectorEvalResult val;
+    eval::DetectorEvalResult val;
 };
 /// Trains with the options of the pose trainer (resume_dir, max_steps, progress, force,
 /// stop_flag: train/trainer.h).

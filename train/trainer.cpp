@@ -21,7 +21,7 @@
 #include "nn/models/g2l_net.h"
 #include "nn/optim.h"
 #include "nn/schedule.h"
-#include "train/evaluate.h"
+#include "eval/evaluate.h"
 #include "train/model_io.h"
 #include "train/pipeline.h"
 #include "train/sources.h"
@@ -30,6 +30,11 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 
 namespace g2l::train {
+
+using eval::EvalOptions;
+using eval::EvalReport;
+using eval::evaluate_gt_boxes;
+using eval::report_json;
 
 namespace {
 

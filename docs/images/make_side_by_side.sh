@@ -9,7 +9,7 @@ T=$(mktemp -d)
 git show e9eb550:configs/ycbv_sim2real.json | python3 -c "import json,sys; json.dump(json.load(sys.stdin)['data']['train'][0]['scene'], open('$T/before.json','w'))"
 python3 -c "import json; json.dump(json.load(open('configs/ycbv_sim2real.json'))['data']['train'][0]['scene'], open('$T/after.json','w'))"
 for m in before after; do
-    build/data/g2l_render --models ../shared/data/ycbv/models --out "$T/$m" --frames 3 --config "$T/$m.json" --threads 1 >/dev/null
+    build/apps/g2l_render --models ../shared/data/ycbv/models --out "$T/$m" --frames 3 --config "$T/$m.json" --threads 1 >/dev/null
 done
 R=../shared/data/ycbv/train_real/000001
 dep() { /usr/bin/convert "$1" -level 4000,14000 -negate -fill black -opaque white "$2"; }

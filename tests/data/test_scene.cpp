@@ -419,3 +419,129 @@ TEST_CASE("resting mode settings are validated", "[data][scene]") {
     CHECK(back.camera_roll_max == 5);
     CHECK(back.camera_distance[0] == 400);
 }
+
+namespace {
+
+// The table's plane from the pixels with depth that show neither an object nor a distractor
+// (blocks are distractors): its unit normal towards the camera and a point on it.
+void fit_table(const RenderedFrame& f, Eigen::Vector3d* up, Eigen::Vector3d* mean) {
+    const geom::Intrinsics& K = f.K;
+    std::vector<Eigen::Vector3d> table;
+    for (int v = 0; v < K.height; v += 3)
+        for (int u = 0; u < K.width; u += 3) {
+            const size_t i = size_t(v) * K.width + u;
+            const double z = f.depth[i];
+            if (z > 0 && f.mask[i] == 0 && f.distractor_mask[i] == 0)
+                table.emplace_back((u + 0.5 - K.cx) * z / K.fx, (v + 0.5 - K.cy) * z / K.fy, z);
+        }
+    REQUIRE(table.size() > 100);
+    *mean = Eigen::Vector3d::Zero();
+    for (const auto& p : table) *mean += p;
+    *mean /= double(table.size());
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const auto& p : table) cov += (p - *mean) * (p - *mean).transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+    *up = es.eigenvectors().col(0);
+    if (up->dot(-*mean) < 0) *up = -*up;
+}
+
+// Height of the instance's lowest vertex above the table.
+double lowest(const geom::Mesh& mesh, const RenderedInstance& gt, const Eigen::Vector3d& up,
+              const Eigen::Vector3d& mean) {
+    double lo = 1e9;
+    for (int64_t v = 0; v < mesh.vertices.rows(); ++v)
+        lo = std::min(lo, up.dot(gt.pose.R * mesh.vertices.row(v).cast<double>().transpose() +
+                                 gt.pose.t - mean));
+    return lo;
+}
+
+}  // namespace
+
+TEST_CASE("resting mode: tallest poses, blocks to stand on, leaning objects", "[data][scene]") {
+    Models m;
+    auto mesh_of = [&](int id) { return id == 1 ? &m.a : id == 2 ? &m.b : &m.c; };
+    SceneConfig cfg = small_config();
+    cfg.pose_mode = "resting";
+    cfg.noise.enabled = false;
+    cfg.distractors_max = 0;
+    cfg.targets_min = 3;
+    cfg.camera_distance = {700, 900};
+    RenderedFrame f;
+    Eigen::Vector3d up, mean;
+    SECTION("tall_prob 1: the 30 x 30 x 90 box stands on its small face in every frame") {
+        cfg.tall_prob = 1;
+        SceneGenerator gen(cfg, m.list());
+        for (int64_t idx = 0; idx < 6; ++idx) {
+            gen.render_frame(idx, f);
+            fit_table(f, &up, &mean);
+            for (const auto& gt : f.instances) {
+                INFO("frame " << idx << " object " << gt.obj_id);
+                CHECK(lowest(*mesh_of(gt.obj_id), gt, up, mean) == Approx(0.0).margin(1.5));
+                if (gt.obj_id == 5) CHECK(std::fabs(up.dot(gt.pose.R.col(2))) == Approx(1.0).margin(1e-3));
+            }
+        }
+    }
+    SECTION("blocks with on_block_prob 1: every object rests on a block, >= 40 mm up") {
+        cfg.blocks_min = cfg.blocks_max = 2;
+        cfg.block_size_mm = {40, 120};
+        cfg.on_block_prob = 1;
+        SceneGenerator gen(cfg, m.list());
+        for (int64_t idx = 0; idx < 6; ++idx) {
+            gen.render_frame(idx, f);
+            int64_t block_px = 0;
+            for (uint8_t d : f.distractor_mask) block_px += d != 0;
+            CHECK(block_px > 0);  // the blocks are rendered, as unannotated distractors
+            fit_table(f, &up, &mean);
+            for (const auto& gt : f.instances) {
+                INFO("frame " << idx << " object " << gt.obj_id);
+                const double lo = lowest(*mesh_of(gt.obj_id), gt, up, mean);
+                CHECK(lo > 40 - 1.5);
+                CHECK(lo < 120 + 1.5);
+            }
+        }
+    }
+    SECTION("lean_prob 1: objects tilt off their stable faces and still touch the table") {
+        cfg.lean_prob = 1;
+        cfg.lean_max_deg = 30;
+        SceneGenerator gen(cfg, m.list());
+        int tilted = 0, boxes = 0;
+        for (int64_t idx = 0; idx < 6; ++idx) {
+            gen.render_frame(idx, f);
+            fit_table(f, &up, &mean);
+            for (const auto& gt : f.instances) {
+                INFO("frame " << idx << " object " << gt.obj_id);
+                CHECK(lowest(*mesh_of(gt.obj_id), gt, up, mean) == Approx(0.0).margin(1.5));
+                if (gt.obj_id == 2) continue;
+                double best = 0;
+                for (int a = 0; a < 3; ++a) best = std::max(best, std::fabs(up.dot(gt.pose.R.col(a))));
+                ++boxes;
+                tilted += best < std::cos(2.0 * 3.14159265358979 / 180);
+                CHECK(best >= std::cos(30.0 * 3.14159265358979 / 180) - 1e-6);
+            }
+        }
+        CHECK(tilted >= boxes * 3 / 4);  // uniform tilts in [0, 30]: few below 2 degrees
+    }
+    SECTION("the settings are validated and round-trip") {
+        CHECK_THROWS_WITH(parse_scene_config(R"({"tall_prob": 1.5})", "s.json"),
+                          Contains("tall_prob must be in [0, 1], got 1.5"));
+        CHECK_THROWS_WITH(parse_scene_config(R"({"lean_prob": -0.1})", "s.json"),
+                          Contains("lean_prob must be in [0, 1]"));
+        CHECK_THROWS_WITH(parse_scene_config(R"({"blocks_min": 3, "blocks_max": 2})", "s.json"),
+                          Contains("blocks_min <= blocks_max"));
+        CHECK_THROWS_WITH(parse_scene_config(R"({"block_size_mm": [90, 40]})", "s.json"),
+                          Contains("block_size_mm must be [min, max]"));
+        CHECK_THROWS_WITH(parse_scene_config(R"({"lean_max_deg": 120})", "s.json"),
+                          Contains("lean_max_deg must be in [0, 90]"));
+        CHECK_THROWS_WITH(parse_scene_config(R"({"blocks": 2})", "s.json"), Contains("unknown key 'blocks'"));
+        cfg.tall_prob = 0.2, cfg.blocks_min = 1, cfg.blocks_max = 3, cfg.on_block_prob = 0.3;
+        cfg.lean_prob = 0.4, cfg.lean_max_deg = 25, cfg.block_size_mm = {50, 150};
+        const SceneConfig b = parse_scene_config(scene_config_to_json(cfg), "round trip");
+        CHECK(b.tall_prob == 0.2);
+        CHECK(b.blocks_min == 1);
+        CHECK(b.blocks_max == 3);
+        CHECK(b.on_block_prob == 0.3);
+        CHECK(b.lean_prob == 0.4);
+        CHECK(b.lean_max_deg == 25);
+        CHECK(b.block_size_mm[1] == 150);
+    }
+}

@@ -20,7 +20,7 @@ expect() {
 has() { grep -q -- "$1" "$T/err" || fail "stderr lacks '$1'"; }
 hasnt() { ! grep -q -- "$1" "$T/err" || fail "stderr has '$1'"; }
 
-for tool in train/g2l_train train/g2l_eval train/g2l_bench train/g2l_rotstudy data/g2l_render apps/g2l_infer; do
+for tool in apps/g2l_train apps/g2l_eval apps/g2l_bench apps/g2l_rotstudy apps/g2l_render apps/g2l_infer; do
     expect 2 "$B/$tool" --no-such-option
     # (g2l_rotstudy and g2l_infer name their missing required option first)
     case $tool in *g2l_rotstudy|*g2l_infer) has "required" ;; *) has "--no-such-option" ;; esac
@@ -28,43 +28,43 @@ for tool in train/g2l_train train/g2l_eval train/g2l_bench train/g2l_rotstudy da
     expect 0 "$B/$tool" --help
     grep -q "Usage" "$T/out" || fail "$tool --help prints no usage"
 done
-expect 2 "$B/train/g2l_train" --max-steps -1 --config x.json
+expect 2 "$B/apps/g2l_train" --max-steps -1 --config x.json
 has "must be >= 0, got -1"
-expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --max-instances -5 --root r
+expect 2 "$B/apps/g2l_eval" --checkpoint x.g2l --max-instances -5 --root r
 has "must be >= 0, got -5"
 
-expect 1 "$B/train/g2l_train" --config "$T/missing.json"
+expect 1 "$B/apps/g2l_train" --config "$T/missing.json"
 has "missing.json"
 # Detector configs ("task": "detector"): strict keys, and g2l_eval's detector modes.
 printf '{"task": "detector", "data": {"models_root": "/m", "object_ids": [1], "colour": 1}}' >"$T/det.json"
-expect 1 "$B/train/g2l_train" --config "$T/det.json"
+expect 1 "$B/apps/g2l_train" --config "$T/det.json"
 has "unknown key 'colour'"
-expect 2 "$B/train/g2l_eval" --root r
+expect 2 "$B/apps/g2l_eval" --root r
 has "give --checkpoint"
-expect 2 "$B/train/g2l_eval" --detector d.g2l
+expect 2 "$B/apps/g2l_eval" --detector d.g2l
 has "needs --root"
-expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --detector d.g2l --root r
+expect 2 "$B/apps/g2l_eval" --checkpoint x.g2l --detector d.g2l --root r
 has "needs --boxes det"
-expect 2 "$B/train/g2l_train" --average out.g2l one.g2l
+expect 2 "$B/apps/g2l_train" --average out.g2l one.g2l
 has "At least 3 required"
-expect 1 "$B/train/g2l_train" --average "$T/avg.g2l" "$T/none.g2l" "$T/none2.g2l"
+expect 1 "$B/apps/g2l_train" --average "$T/avg.g2l" "$T/none.g2l" "$T/none2.g2l"
 has "none.g2l"
 # Detector exports average into a detector export (the mean of one export with itself is it);
 # a pose model among them is named.
-expect 0 "$B/train/g2l_train" --average "$T/davg.g2l" "$S/models/lmo_detector.g2l" "$S/models/lmo_detector.g2l"
+expect 0 "$B/apps/g2l_train" --average "$T/davg.g2l" "$S/models/lmo_detector.g2l" "$S/models/lmo_detector.g2l"
 cmp -s "$T/davg.g2l" "$S/models/lmo_detector.g2l" || fail "the mean of a detector with itself differs from it"
-expect 1 "$B/train/g2l_train" --average "$T/davg2.g2l" "$S/models/lmo_detector.g2l" "$S/models/ycbv_sim2real.g2l"
+expect 1 "$B/apps/g2l_train" --average "$T/davg2.g2l" "$S/models/lmo_detector.g2l" "$S/models/ycbv_sim2real.g2l"
 has "ycbv_sim2real.g2l' is not a detector export"
-expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --root r --oracle mask
+expect 2 "$B/apps/g2l_eval" --checkpoint x.g2l --root r --oracle mask
 has "mask"
-expect 2 "$B/train/g2l_eval" --detector d.g2l --root r --oracle seg
+expect 2 "$B/apps/g2l_eval" --detector d.g2l --root r --oracle seg
 has "--oracle seg needs --checkpoint"
 # --det-mirror is the detector's option
-expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --root r --det-mirror
+expect 2 "$B/apps/g2l_eval" --checkpoint x.g2l --root r --det-mirror
 has "--det-mirror needs --detector"
 expect 2 "$B/apps/g2l_infer" --model m.g2l --depth d.png --camera c.json --box 1,0,0,9,9 --det-mirror
 has "--det-mirror needs --detector"
-expect 1 "$B/train/g2l_eval" --detector "$T/none.g2l" --root "$S/tests/data/ycbv_mini" --split train_real
+expect 1 "$B/apps/g2l_eval" --detector "$T/none.g2l" --root "$S/tests/data/ycbv_mini" --split train_real
 has "none.g2l"
 # What a detector needs comes from its export: the shipped LM-O detector sees colour.
 F="$S/tests/data/ycbv_mini/train_real/000000"
@@ -75,45 +75,45 @@ expect 1 "$B/apps/g2l_infer" --model "$S/models/ycbv_sim2real.g2l" --depth "$F/d
     --camera "$F/scene_camera.json" --image-id 1 --detector "$T/none.g2l"
 has "none.g2l"
 hasnt "failed at"
-expect 1 "$B/train/g2l_train" --config "$T/missing.json" --verbose
+expect 1 "$B/apps/g2l_train" --config "$T/missing.json" --verbose
 has "failed at"
-G2L_VERBOSE=1 expect 1 "$B/train/g2l_train" --config "$T/missing.json"
+G2L_VERBOSE=1 expect 1 "$B/apps/g2l_train" --config "$T/missing.json"
 has "failed at"
-expect 1 "$B/train/g2l_eval" --checkpoint "$T/none.g2l" --root "$S/tests/data/ycbv_mini" --split train_real
+expect 1 "$B/apps/g2l_eval" --checkpoint "$T/none.g2l" --root "$S/tests/data/ycbv_mini" --split train_real
 has "none.g2l"
 hasnt "failed at"
 # g2l_eval: --set keys that cannot affect evaluation are refused, not ignored.
-expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --root r --set anything=1
+expect 2 "$B/apps/g2l_eval" --checkpoint x.g2l --root r --set anything=1
 has "needs --config"
-expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --config "$S/configs/demo_cpu.json" --set model.width=1
+expect 2 "$B/apps/g2l_eval" --checkpoint x.g2l --config "$S/configs/demo_cpu.json" --set model.width=1
 has "no effect on evaluation"
 
 # A run directory that already holds a run is refused (no --force / --resume).
 mkdir "$T/run"
 echo '{}' >"$T/run/config.json"
-expect 1 "$B/train/g2l_train" --config "$S/configs/demo_cpu.json" --set "run_dir=$T/run" --max-steps 1
+expect 1 "$B/apps/g2l_train" --config "$S/configs/demo_cpu.json" --set "run_dir=$T/run" --max-steps 1
 has "already holds a run"
 has "--resume"
 [ "$(cat "$T/run/config.json")" = "{}" ] || fail "the refused run directory was modified"
 # A run directory that cannot be created (a file in the way) fails before any data is read.
 echo x >"$T/file"
-expect 1 "$B/train/g2l_train" --config "$S/configs/demo_cpu.json" --set "run_dir=$T/file/run" --max-steps 1
+expect 1 "$B/apps/g2l_train" --config "$S/configs/demo_cpu.json" --set "run_dir=$T/file/run" --max-steps 1
 has "cannot create the run directory"
 # --resume of something that is not a run.
 mkdir "$T/empty"
-expect 1 "$B/train/g2l_train" --resume "$T/empty"
+expect 1 "$B/apps/g2l_train" --resume "$T/empty"
 has "config.json"
 
 # g2l_render: the split stays inside --out; an existing scene is not silently mixed with a new one.
 M="$S/tests/data/ycbv_mini/models"
-expect 2 "$B/data/g2l_render" --models "$M" --out "$T/r" --frames 1 --split ../../escape
+expect 2 "$B/apps/g2l_render" --models "$M" --out "$T/r" --frames 1 --split ../../escape
 has "plain folder name"
 [ ! -e "$T/escape" ] && [ ! -e "$T/../escape" ] || fail "--split escaped --out"
-expect 0 "$B/data/g2l_render" --models "$M" --out "$T/r" --frames 2 --threads 1
+expect 0 "$B/apps/g2l_render" --models "$M" --out "$T/r" --frames 2 --threads 1
 [ -f "$T/r/train_synt/000000/rgb/000001.png" ] || fail "no frame 1 rendered"
-expect 1 "$B/data/g2l_render" --models "$M" --out "$T/r" --frames 1 --threads 1
+expect 1 "$B/apps/g2l_render" --models "$M" --out "$T/r" --frames 1 --threads 1
 has "already holds a rendered scene"
-expect 0 "$B/data/g2l_render" --models "$M" --out "$T/r" --frames 1 --threads 1 --force
+expect 0 "$B/apps/g2l_render" --models "$M" --out "$T/r" --frames 1 --threads 1 --force
 [ ! -e "$T/r/train_synt/000000/rgb/000001.png" ] || fail "a stale frame survived --force"
 # g2l_infer and g2l_eval with boxes from a detection file.
 F="$S/tests/data/ycbv_mini/train_real/000000"
@@ -188,9 +188,9 @@ fi
 printf '{"fx": 500, "fx": 600, "fy": 500, "cx": 320, "cy": 240}' > "$T/camdup.json"
 expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$T/camdup.json" --box 8,186,132,139,191
 has "duplicate key 'fx'"
-expect 2 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real --boxes file
+expect 2 "$B/apps/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real --boxes file
 has "needs --detections"
-expect 0 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
+expect 0 "$B/apps/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
     --boxes file --detections "$T/dets.json" --bop-csv "$T/res.csv" --instances "$T/inst.jsonl" --vis "$T/vis"
 head -n1 "$T/res.csv" | grep -q "^scene_id,im_id,obj_id,score,R,t,time$" || fail "BOP CSV header"
 [ "$(wc -l < "$T/res.csv")" -eq 3 ] || fail "BOP CSV: expected 2 rows (image 1), got $(cat "$T/res.csv")"
@@ -199,22 +199,22 @@ grep -q "^0,1,14,0.700000," "$T/res.csv" || fail "BOP CSV: object 14 should take
 [ "$(grep -c '"status":"no detection"' "$T/inst.jsonl")" -eq 2 ] || fail "image 11 has no detections: 2 misses expected"
 [ -s "$T/vis/000000_1.png" ] && [ -s "$T/vis/accuracy_obj_8.png" ] || fail "g2l_eval --vis images"
 # --oracle seg+t: the GT translation is the estimate's (translation error ~0 on every instance).
-expect 0 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
+expect 0 "$B/apps/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
     --oracle seg+t --refine none --json "$T/oracle.json"
 grep -q "Oracle inputs (seg+t)" "$T/out" || fail "g2l_eval --oracle: the table names the oracle"
 grep -q '"oracle": "seg+t"' "$T/oracle.json" || fail "g2l_eval --oracle: the JSON names the oracle"
 grep -q '"seg_iou": 1.0' "$T/oracle.json" || fail "g2l_eval --oracle seg+t: seg IoU 1"
 # The default refinement (turns): ICP against the fixture meshes; the table and the JSON name
 # it. --refine none: the networks alone, no fit.
-expect 0 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
+expect 0 "$B/apps/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
     --json "$T/refine.json" --instances "$T/refine.jsonl"
 grep -q "Depth refinement (turns)" "$T/out" || fail "g2l_eval --refine: the table names it"
 grep -q '"refine": "turns"' "$T/refine.json" || fail "g2l_eval --refine: the JSON names it"
 [ "$(grep -c '"fit_mm"' "$T/refine.jsonl")" -eq 4 ] || fail "g2l_eval --refine: a fit per instance"
-expect 0 "$B/train/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
+expect 0 "$B/apps/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
     --refine none --json "$T/norefine.json" --instances "$T/norefine.jsonl"
 grep -q '"refine": "none"' "$T/norefine.json" || fail "g2l_eval --refine none: the JSON names it"
 [ "$(grep -c '"fit_mm"' "$T/norefine.jsonl")" -eq 0 ] || fail "g2l_eval --refine none: no fit"
-expect 2 "$B/train/g2l_eval" --checkpoint x.g2l --root r --refine fast
+expect 2 "$B/apps/g2l_eval" --checkpoint x.g2l --root r --refine fast
 has "fast"
 echo "cli: every check passed"

@@ -9,7 +9,7 @@ S=$2
 T=$(mktemp -d)
 trap 'rm -rf "$T"' EXIT
 fail() { echo "FAIL: $*"; for f in "$T"/*.log; do echo "--- $f"; tail -5 "$f"; done; exit 1; }
-TRAIN="$B/train/g2l_train"
+TRAIN="$B/apps/g2l_train"
 # Tiny settings: epochs of 96 samples (12 steps), no validation, a checkpoint every epoch.
 SETS="--set train.epochs=6 --set train.samples_per_epoch=96 --set train.val_every=0 --set train.log_every=1 --set threads=2"
 last_step() { tail -1 "$1/steps.jsonl" | sed 's/.*"step":\([0-9]*\).*/\1/'; }

@@ -6,7 +6,7 @@
 #include <cmath>
 
 #include "core/error.h"
-#include "train/bench.h"
+#include "tools/bench.h"
 
 using namespace g2l;
 using Catch::Matchers::Contains;
@@ -17,7 +17,7 @@ TEST_CASE("bench_refine: four figures, the grid's build and both paths timed", "
     CHECK(figs[0].name == "refine_ms");
     CHECK(figs[1].name == "refine_ms_p90");
     CHECK(figs[2].name == "refine_tree_ms");
-    CHECK(figs[3].name == "refine_grid_build_ms");
+    CHECK(figs[3].name == "refine_prepare_ms");
     for (const auto& f : figs) {
         CHECK(f.unit == "ms");
         CHECK(std::isfinite(f.value));

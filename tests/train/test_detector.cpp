@@ -366,12 +366,12 @@ TEST_CASE("detector: evaluation and g2l_eval's detector boxes run on real frames
     det.net->eval();
     det.object_ids = {8, 14};
     det.downscale = 4;
-    const auto r = train::evaluate_detector(det, ds, 0.0, 0.3f, 2);
+    const auto r = eval::evaluate_detector(det, ds, 0.0, 0.3f, 2);
     REQUIRE(r.frames == 2);
     REQUIRE(r.rows.size() == 2);
     REQUIRE(r.total.instances > 0);
     REQUIRE(r.ms_per_frame > 0);
-    const std::string table = train::detector_eval_table(r);
+    const std::string table = eval::detector_eval_table(r);
     REQUIRE_THAT(table, Contains("recall@.5") && Contains("recall_top3") && Contains("2 frames"));
     for (const auto& row : r.rows) {  // the best detection is one of the three best
         REQUIRE(row.found_top3 >= row.found);
@@ -382,7 +382,7 @@ TEST_CASE("detector: evaluation and g2l_eval's detector boxes run on real frames
     const auto raw = nn::detect(*det.net, det.downscale, img.data.data(), img.w, img.h, 0.0f, 10);
     REQUIRE(raw.size() > 2);
     for (size_t i = 1; i < raw.size(); ++i) CHECK(raw[i - 1].score >= raw[i].score);
-    const auto dets = train::run_detector_on(det, ds, 0.0f);
+    const auto dets = eval::run_detector_on(det, ds, 0.0f);
     REQUIRE(!dets.empty());
     for (const auto& d : dets) {
         REQUIRE(d.scene_id >= 0);

@@ -5,13 +5,13 @@
 #include <limits>
 
 #include "geometry/metrics.h"
-#include "train/evaluate.h"
+#include "eval/evaluate.h"
 #include "data/bop.h"
 #include "nn/models/g2l_io.h"
 #include "testing.h"
 
 using namespace g2l;
-using namespace g2l::train;
+using namespace g2l::eval;
 
 TEST_CASE("aggregate: per-object and average figures of a hand-made case", "[train][eval]") {
     const std::map<int, ObjectMeta> meta = {{1, {"box", 100.0, false, 2}},

@@ -13,7 +13,7 @@
 #include "geometry/keypoints.h"
 #include "geometry/symmetry.h"
 #include "testing.h"
-#include "train/rot_study.h"
+#include "tools/rot_study.h"
 #include "train/sources.h"
 
 using namespace g2l;

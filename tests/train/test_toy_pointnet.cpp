@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include <catch2/catch.hpp>
 
-#include "train/toy_pointnet.h"
+#include "tools/toy_pointnet.h"
 
 using namespace g2l;
 

@@ -11,7 +11,7 @@
 #include "core/checkpoint.h"
 #include "testing.h"
 #include "train/config.h"
-#include "train/evaluate.h"
+#include "eval/evaluate.h"
 #include "train/model_io.h"
 #include "train/trainer.h"
 #include "data/bop.h"
@@ -163,8 +163,8 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
     data::BopOptions o;
     o.obj_ids = {8, 14};
     const auto ds = data::open_bop(testing::fixture_dir() + "/ycbv_mini", "train_real", o);
-    train::EvalOptions eo;
-    const auto r = train::evaluate_gt_boxes(*m.net, ds, m.class_of, m.keypoints, eo);
+    eval::EvalOptions eo;
+    const auto r = eval::evaluate_gt_boxes(*m.net, ds, m.class_of, m.keypoints, eo);
     REQUIRE(r.instances == 4);
     REQUIRE(r.objects.size() == 2);
     for (const auto& s : r.objects) {
@@ -173,7 +173,7 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
         REQUIRE(s.auc_adds <= 100);
         REQUIRE(s.auc_add <= s.auc_adds + 1e-9);  // ADD >= ADD-S per instance
     }
-    const std::string md = train::report_markdown(r);
+    const std::string md = eval::report_markdown(r);
     REQUIRE_THAT(md, Catch::Contains("009_gelatin_box") && Catch::Contains("**average**"));
     // a truncated checkpoint is reported with its file name
     const std::string cut = dir + "/cut.g2l";
@@ -190,7 +190,7 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
         CHECK(s.rot_err_sym_deg_median <= 180);
         CHECK(s.num_symmetries >= 1);
     }
-    CHECK_THAT(train::report_json(r), Catch::Contains("acc_addsym_10") &&
+    CHECK_THAT(eval::report_json(r), Catch::Contains("acc_addsym_10") &&
                                           Catch::Contains("rot_err_sym_deg_median") &&
                                           Catch::Contains("acc_adds_all_10") &&
                                           Catch::Contains("\"oracle\": \"none\""));
@@ -198,14 +198,14 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
     // The seg IoU against training's label rule is a fraction; with the ground-truth object
     // points (oracle seg) it is 1; with the GT translation too the translation error is 0 and
     // the errors are the rotation's alone.
-    std::vector<train::InstanceResult> plain, oracle;
-    train::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, &plain);
-    train::EvalOptions eo2 = eo;
+    std::vector<eval::InstanceResult> plain, oracle;
+    eval::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, &plain);
+    eval::EvalOptions eo2 = eo;
     eo2.oracle_seg = true;
     eo2.oracle_t = true;
-    const auto ro = train::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo2, &oracle);
+    const auto ro = eval::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo2, &oracle);
     CHECK(ro.oracle == "seg+t");
-    CHECK_THAT(train::report_markdown(ro), Catch::Contains("Oracle inputs (seg+t)"));
+    CHECK_THAT(eval::report_markdown(ro), Catch::Contains("Oracle inputs (seg+t)"));
     REQUIRE(plain.size() == 4);
     REQUIRE(oracle.size() == 4);
     for (size_t i = 0; i < plain.size(); ++i) {
@@ -235,7 +235,7 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
         REQUIRE(sde.at(name).nbytes() == t.nbytes());
         CHECK(std::memcmp(static_cast<const Tensor&>(sde.at(name)).data(), static_cast<const Tensor&>(t).data(), t.nbytes()) == 0);
     }
-    const auto r2 = train::evaluate_gt_boxes(*e.net, ds, e.class_of, e.keypoints, eo);
+    const auto r2 = eval::evaluate_gt_boxes(*e.net, ds, e.class_of, e.keypoints, eo);
     CHECK(r2.average.auc_adds == r.average.auc_adds);
     // A training run cannot resume from an export, and bad paths name the file.
     CHECK_THROWS_WITH(train::export_model(cut, dir + "/x.g2l"), Catch::Contains("cut.g2l"));

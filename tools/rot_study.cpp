@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-#include "train/rot_study.h"
+#include "tools/rot_study.h"
 
 #include <algorithm>
 #include <chrono>

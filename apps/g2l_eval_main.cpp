@@ -15,7 +15,7 @@
 #include "geometry/metrics.h"
 #include "train/config.h"
 #include "train/detector_train.h"
-#include "train/evaluate.h"
+#include "eval/evaluate.h"
 #include "train/model_io.h"
 
 namespace {
@@ -23,7 +23,7 @@ namespace {
 using json = nlohmann::json;
 
 // --bop-csv, --instances and --vis for the instances of one evaluated set.
-void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::train::InstanceResult>& inst,
+void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::eval::InstanceResult>& inst,
                    std::ofstream* csv, std::ofstream* jsonl, const std::string& vis_dir,
                    const std::string& set_name) {
     // BOP: `time` is the wall time of the whole image, the same on all of its rows.
@@ -76,7 +76,7 @@ void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::train::I
     if (vis_dir.empty()) return;
     namespace fs = std::filesystem;
     // One image per frame: ground truth green, estimate blue (the paper's Fig. 7).
-    std::map<std::pair<std::string, int>, std::vector<const g2l::train::InstanceResult*>> by_frame;
+    std::map<std::pair<std::string, int>, std::vector<const g2l::eval::InstanceResult*>> by_frame;
     for (const auto& r : inst) by_frame[{r.scene, r.image_id}].push_back(&r);
     for (const auto& f : ds.frames()) {
         const auto it = by_frame.find({f.scene, f.image_id});
@@ -107,7 +107,7 @@ void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::train::I
     }
     // Accuracy against the threshold (fraction of the diameter, 0-20%) per object: ADD-S (red),
     // ADD modulo the geometric symmetries (blue), ADD (grey).
-    std::map<int, std::vector<const g2l::train::InstanceResult*>> by_obj;
+    std::map<int, std::vector<const g2l::eval::InstanceResult*>> by_obj;
     for (const auto& r : inst) by_obj[r.obj_id].push_back(&r);
     for (const auto& [id, rs] : by_obj) {
         const double d = ds.model(id).info.diameter;
@@ -241,12 +241,12 @@ int main(int argc, char** argv) {
             g2l::data::BopOptions o;
             o.obj_ids = det.object_ids;
             const g2l::data::BopDataset ds = g2l::data::open_bop(root, split, o);
-            const auto r = g2l::train::evaluate_detector(det, ds, min_visib > 0 ? min_visib : 0.1,
+            const auto r = g2l::eval::evaluate_detector(det, ds, min_visib > 0 ? min_visib : 0.1,
                                                          0.3f, 0, true, det_mirror);
             std::printf("detector %s on %s/%s (instances with visib_fract >= %.2f):\n%s",
                         detector_path.c_str(), root.c_str(), split.c_str(),
                         min_visib > 0 ? min_visib : 0.1,
-                        g2l::train::detector_eval_table(r).c_str());
+                        g2l::eval::detector_eval_table(r).c_str());
             if (!json_out.empty()) {
                 nlohmann::json j;
                 j["detector"] = detector_path;
@@ -360,7 +360,7 @@ int main(int argc, char** argv) {
         }
         std::string json_all = "[";
         for (size_t i = 0; i < sets_to_eval.size(); ++i) {
-            g2l::train::EvalOptions eo;
+            g2l::eval::EvalOptions eo;
             eo.crop = m.crop;
             eo.radius_scale = m.radius_scale;
             eo.crop_points = crop_points >= 0 ? crop_points : m.points;
@@ -385,21 +385,21 @@ int main(int argc, char** argv) {
             const auto& ds = sets_to_eval[i].second;
             std::vector<g2l::data::Detection> det_boxes;
             if (boxes == "det") {  // the detector on every frame (what its input needs), timed
-                det_boxes = g2l::train::run_detector_on(*det, ds, 0.05f, det_mirror);
+                det_boxes = g2l::eval::run_detector_on(*det, ds, 0.05f, det_mirror);
                 eo.detections = &det_boxes;
             }
-            std::vector<g2l::train::InstanceResult> inst;
-            const auto r = g2l::train::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo,
+            std::vector<g2l::eval::InstanceResult> inst;
+            const auto r = g2l::eval::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo,
                                                           &inst);
             std::printf("## %s (%s boxes, %s crop)\n\n%s\n", sets_to_eval[i].first.c_str(),
                         boxes == "gt"    ? "GT"
                         : boxes == "det" ? ("detector " + detector_path).c_str()
                                          : ("detection file " + detections_path).c_str(),
-                        m.crop.c_str(), g2l::train::report_markdown(r).c_str());
+                        m.crop.c_str(), g2l::eval::report_markdown(r).c_str());
             write_outputs(ds, inst, csv_out.is_open() ? &csv_out : nullptr,
                           inst_out.is_open() ? &inst_out : nullptr, vis_dir,
                           sets_to_eval[i].first);
-            json_all += (i ? "," : "") + g2l::train::report_json(r);
+            json_all += (i ? "," : "") + g2l::eval::report_json(r);
         }
         json_all += "]";
         if (!json_out.empty()) {

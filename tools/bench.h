@@ -52,7 +52,8 @@ std::vector<BenchFigure> bench_detector(int reps, int width = 16, int downscale 
 /// image (1,000 of its visible points, about the object points of a crop), from a start 20
 /// degrees and 15 mm off. Figures "refine_ms" (median, with the
 /// ClosestPointGrid as g2l_eval and the library run it), "refine_ms_p90", "refine_tree_ms" (k-d
-/// tree only, for comparison) and "refine_grid_build_ms" (once per model) over `reps` runs.
+/// tree only, for comparison) and "refine_prepare_ms" (what the frame pipeline prepares once per model: the
+/// k-d tree, its normals and the grid) over `reps` runs.
 std::vector<BenchFigure> bench_refine(int reps);
 
 /// Peak resident set size of this process so far (MB; getrusage).

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-#include "train/toy_pointnet.h"
+#include "tools/toy_pointnet.h"
 
 #include <chrono>
 #include <cmath>

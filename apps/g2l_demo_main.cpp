@@ -6,7 +6,7 @@
 #include <cstdio>
 
 #include "core/threads.h"
-#include "train/toy_pointnet.h"
+#include "tools/toy_pointnet.h"
 
 int main(int argc, char** argv) {
     CLI::App app{"g2l_demo: trains on data embedded in the repository and reports the result"};

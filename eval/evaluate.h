@@ -12,7 +12,7 @@
 #include "geometry/types.h"
 #include "nn/models/g2l_net.h"
 
-namespace g2l::train {
+namespace g2l::eval {
 
 struct EvalOptions {
     std::string crop = "sphere";     ///< sphere | frustum | slab (as in training)
@@ -145,4 +145,4 @@ std::string report_markdown(const EvalReport& r);
 /// The report as a JSON text.
 std::string report_json(const EvalReport& r);
 
-}  // namespace g2l::train
+}  // namespace g2l::eval

@@ -16,7 +16,7 @@
 #include "core/threads.h"
 #include "data/bop.h"
 #include "g2l/pose_estimator.h"
-#include "train/bench.h"
+#include "tools/bench.h"
 #include "train/config.h"
 
 namespace {

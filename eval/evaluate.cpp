@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT
-#include "train/evaluate.h"
+#include "eval/evaluate.h"
 
 #include <algorithm>
 #include <chrono>
@@ -18,10 +18,10 @@
 #include "geometry/metrics.h"
 #include "geometry/refine.h"
 #include "geometry/symmetry.h"
-#include "nn/models/g2l_engine.h"
+#include "infer/frame_pipeline.h"
 #include "nn/models/g2l_pose.h"
 
-namespace g2l::train {
+namespace g2l::eval {
 
 namespace {
 
@@ -75,11 +75,8 @@ struct Acc {
 
 // Model points and geometric symmetries of one object (computed once per evaluation).
 struct ObjGeom {
-    geom::Points pts;
+    geom::Points pts;  // model vertices for ADD / ADD-S (stride subsample)
     std::vector<geom::SymmetryTransform> syms;
-    std::unique_ptr<geom::ModelKdTree> tree;  // mesh vertices + surface samples (label rule)
-    geom::Points normals;                     // the tree points' normals (refinement only)
-    geom::ClosestPointGrid grid;              // nearest tree point per cell (refinement only)
 };
 
 // IoU of `taken` with the flagged rows of `gt`, both restricted to the rows in `seen` (each
@@ -123,63 +120,80 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
             if (it == best_det.end() || d.score > it->second->score) best_det[k] = &d;
         }
     }
-    G2L_CHECK(opt.refine == "none" || opt.refine == "icp" || opt.refine == "turns",
-              "evaluate: refine must be none, icp or turns, got '", opt.refine, "'");
-    G2L_CHECK(opt.crop == "sphere" || opt.crop == "frustum" || opt.crop == "slab",
-              "evaluate: crop must be sphere, frustum or slab, got '", opt.crop, "'");
+    // The frame pipeline the inference library runs (infer/frame_pipeline.h): the same crop,
+    // networks and refinement; evaluation adds only the ground truth and the oracle inputs.
+    infer::PipelineModel pm;
+    pm.net = &net;
+    pm.class_of = class_of;
+    pm.keypoints = keypoints;
+    pm.crop = opt.crop;
+    pm.radius_scale = opt.radius_scale;
+    for (const auto& [id, om] : ds.models())
+        if (class_of.count(id)) pm.diameter[id] = om.info.diameter;
+    infer::PipelineOptions po;
+    po.crop_points = std::max(0, opt.crop_points);
+    po.object_points = opt.max_object_points;
+    po.refine = infer::parse_refine(opt.refine, "evaluate: refine");
     const bool was_training = net.is_training();
     net.eval();
     autograd::NoGradGuard no_grad;
-    // The inference library's compiled networks (same poses as the eval-mode graph up to float
-    // rounding, ~2x faster; tests/nn/test_engine.cpp).
-    nn::PoseEngine engine(net);
+    infer::FramePipeline pipe(std::move(pm), po);
     std::vector<InstanceResult> results;
     std::map<int, ObjectMeta> meta;
     std::map<int, ObjGeom> model_geom;
     EvalReport rep;
     double t_crop = 0, t_seg = 0, t_t = 0, t_rot = 0, t_refine = 0;
+    std::vector<const data::Instance*> insts;  // this frame's evaluated instances
+    std::vector<InstanceResult> res;           // their results
+    std::vector<infer::PoseRequest> reqs;      // the boxes the pipeline poses
+    std::vector<size_t> req_of;                // index in insts of each request
+    std::vector<infer::PoseOutcome> outs;
+    std::vector<std::vector<uint8_t>> gt_obj;  // per request: GT object flags of its crop rows
+    std::vector<Eigen::Vector3f> gt_t;
+    std::vector<infer::Oracle> oracles;
     for (const data::Frame& f : ds.frames()) {
         if (opt.max_instances > 0 && rep.instances >= opt.max_instances) break;
-        bool any = false;
-        for (const auto& inst : f.instances)
-            any |= class_of.count(inst.obj_id) && inst.visible_enough(opt.min_visib_fract);
-        if (!any) continue;
-        int w = 0, h = 0;
-        const std::vector<float> depth = ds.load_depth_mm(f, &w, &h);
+        insts.clear();
         for (const data::Instance& inst : f.instances) {
             if (!class_of.count(inst.obj_id) || !inst.visible_enough(opt.min_visib_fract)) continue;
             if (opt.max_instances > 0 && rep.instances >= opt.max_instances) break;
+            insts.push_back(&inst);
+            rep.instances++;
+        }
+        if (insts.empty()) continue;
+        int w = 0, h = 0;
+        const std::vector<float> depth = ds.load_depth_mm(f, &w, &h);
+        geom::Intrinsics K = f.K;
+        K.width = w;
+        K.height = h;
+        res.assign(insts.size(), InstanceResult{});
+        reqs.clear();
+        req_of.clear();
+        for (size_t k = 0; k < insts.size(); ++k) {
+            const data::Instance& inst = *insts[k];
             const data::ObjectModel& om = ds.model(inst.obj_id);
-            if (!model_geom.count(inst.obj_id)) {
+            if (!model_geom.count(inst.obj_id)) {  // once per object
                 const geom::Mesh& mesh = ds.load_model_mesh(inst.obj_id);
+                pipe.add_mesh(inst.obj_id, mesh, om.info);
                 const int64_t nv = mesh.vertices.rows();
                 const int64_t keep = opt.max_model_points > 0 ? std::min<int64_t>(nv, opt.max_model_points) : nv;
-                geom::Points p(keep, 3);
-                for (int64_t i = 0; i < keep; ++i) p.row(i) = mesh.vertices.row(i * nv / keep);
                 ObjGeom g;
-                g.pts = p;
-                g.tree = std::make_unique<geom::ModelKdTree>(geom::ModelKdTree::from_mesh(mesh));
-                g.syms = geom::geometric_symmetries(*g.tree, om.info);
-                if (opt.refine != "none") {
-                    g.normals = g.tree->normals();
-                    g.grid = geom::ClosestPointGrid::for_refine(*g.tree, om.info);
-                }
+                g.pts.resize(keep, 3);
+                for (int64_t i = 0; i < keep; ++i) g.pts.row(i) = mesh.vertices.row(i * nv / keep);
+                g.syms = geom::geometric_symmetries(*pipe.mesh(inst.obj_id)->tree, om.info);
+                meta[inst.obj_id] = {om.name, om.info.diameter, om.info.symmetric,
+                                     int(std::max<size_t>(1, g.syms.size()))};
                 model_geom[inst.obj_id] = std::move(g);
             }
-            if (!meta.count(inst.obj_id))
-                meta[inst.obj_id] = {om.name, om.info.diameter, om.info.symmetric,
-                                     int(std::max<size_t>(1, model_geom[inst.obj_id].syms.size()))};
-            InstanceResult res;
-            res.obj_id = inst.obj_id;
-            res.scene = f.scene;
-            res.image_id = f.image_id;
-            res.inst_index = int(&inst - f.instances.data());
-            res.gt = inst.pose;
-            rep.instances++;
-            const auto t0 = Clock::now();
-            geom::Box2i box0 = inst.box();
-            bool detected = true;
-            std::optional<std::pair<double, double>> det_peak;  // the detector's heat-map peak
+            InstanceResult& r = res[k];
+            r.obj_id = inst.obj_id;
+            r.scene = f.scene;
+            r.image_id = f.image_id;
+            r.inst_index = int(&inst - f.instances.data());
+            r.gt = inst.pose;
+            infer::PoseRequest q;
+            q.obj_id = inst.obj_id;
+            q.box = inst.box();
             if (opt.detections) {
                 int scene_id = -1;
                 try {
@@ -189,105 +203,93 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                               "are), so detections cannot be matched to it");
                 }
                 const auto it = best_det.find(std::make_tuple(scene_id, f.image_id, inst.obj_id));
-                detected = it != best_det.end();
-                res.det_iou = 0;
-                if (detected) {
-                    const data::Detection& d = *it->second;
-                    box0 = {int(std::lround(d.x)), int(std::lround(d.y)), int(std::lround(d.w)),
-                            int(std::lround(d.h))};
-                    res.score = d.score;
-                    const geom::Box2i gt = inst.box();
-                    res.det_iou = geom::box_iou(d.x, d.y, d.w, d.h, gt.x, gt.y, gt.w, gt.h);
-                    if (d.peak_x >= 0 && d.peak_y >= 0) det_peak = std::make_pair(d.peak_x, d.peak_y);
+                r.det_iou = 0;
+                if (it == best_det.end()) {
+                    r.status = "no detection";
+                    r.box = geom::clip_box(q.box, w, h);
+                    continue;
                 }
+                const data::Detection& d = *it->second;
+                q.box = {int(std::lround(d.x)), int(std::lround(d.y)), int(std::lround(d.w)),
+                         int(std::lround(d.h))};
+                r.score = d.score;
+                const geom::Box2i gt = inst.box();
+                r.det_iou = geom::box_iou(d.x, d.y, d.w, d.h, gt.x, gt.y, gt.w, gt.h);
+                if (d.peak_x >= 0 && d.peak_y >= 0) q.peak_x = d.peak_x, q.peak_y = d.peak_y;
             }
-            const geom::Box2i box = geom::clip_box(box0, w, h);
-            res.box = box;
-            geom::Points crop;
-            bool have = detected && !box.empty();
-            res.status = !detected ? "no detection" : box.empty() ? "box outside image" : "ok";
-            if (have) {
-                const geom::Points pts = geom::depth_to_points(depth.data(), w, h, f.K, box);
+            if (opt.centre_from_mask && opt.crop != "frustum") {
                 Eigen::Vector3d c;
-                if (opt.crop == "frustum") {
-                    crop = pts;
-                } else if (opt.centre_from_mask
-                               ? sphere_centre(ds, f, inst, depth, w, h, box, &c)
-                           : det_peak ? geom::peak_centre(depth.data(), w, h, f.K, box,
-                                                          det_peak->first, det_peak->second, &c)
-                                      : geom::box_centre(depth.data(), w, h, f.K, box, &c)) {
-                    crop = geom::crop_points(opt.crop, pts, c, opt.radius_scale * om.info.diameter);
-                } else {
-                    have = false;
-                    res.status = "no depth";
+                const geom::Box2i box = geom::clip_box(q.box, w, h);
+                r.box = box;
+                if (box.empty()) {
+                    r.status = "box outside image";
+                    continue;
                 }
-            }
-            const double ms_crop = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-            t_crop += ms_crop;
-            nn::PoseEstimate est;
-            std::vector<int> taken;  // crop rows taken as object
-            if (have) {
-                // Ground-truth object points of the crop (outside the timed stages).
-                const std::vector<uint8_t> gt_obj = model_geom[inst.obj_id].tree->label_points(
-                    crop, inst.pose, float(opt.label_threshold_mm));
-                const Eigen::Vector3f gt_t = inst.pose.t.cast<float>();
-                nn::PoseQuery q;
-                q.crop = &crop;
-                q.class_index = class_of.at(inst.obj_id);
-                q.keypoints = &keypoints[size_t(q.class_index)];
-                q.object_mask = opt.oracle_seg ? &gt_obj : nullptr;
-                q.translation = opt.oracle_t ? &gt_t : nullptr;
-                q.object_rows = &taken;
-                std::vector<nn::PoseEstimate> ests;
-                engine.estimate({q}, opt.max_object_points, opt.crop_points, &ests);
-                est = std::move(ests[0]);
-                const int n_seen = opt.crop_points > 0 ? opt.crop_points : int(crop.rows());
-                res.seg_iou = rows_iou(nn::even_sample(int(crop.rows()), n_seen), taken, gt_obj);
-            }
-            t_seg += est.ms_seg; t_t += est.ms_t; t_rot += est.ms_rot;
-            res.ms = ms_crop + est.ms_seg + est.ms_t + est.ms_rot;
-            if (have && !est.ok) res.status = est.status;
-            if (!est.ok) {
-                results.push_back(res);
-                continue;
-            }
-            if (opt.refine != "none") {
-                const auto tr = Clock::now();
-                geom::Points obs(int64_t(taken.size()), 3);
-                for (size_t i = 0; i < taken.size(); ++i) obs.row(int64_t(i)) = crop.row(taken[i]);
-                if (obs.rows() >= 3) {
-                    geom::RefineOptions ro;
-                    ro.hypotheses = opt.refine == "turns";
-                    geom::DepthImage di{depth.data(), f.K};
-                    di.K.width = w;
-                    di.K.height = h;
-                    const geom::RefineResult rr = geom::refine_pose(
-                        *model_geom[inst.obj_id].tree, om.info, obs, est.pose, ro, &di,
-                        &model_geom[inst.obj_id].normals, &model_geom[inst.obj_id].grid);
-                    est.pose = rr.pose;
-                    res.refine_hyp = rr.hypothesis;
-                    res.refine_cluster = rr.cluster;
-                    res.fit_mm = rr.fit_mm;
-                    res.gt_fit_mm = geom::fit_error(*model_geom[inst.obj_id].tree, obs, inst.pose,
-                                                    0.1 * om.info.diameter);
+                if (!sphere_centre(ds, f, inst, depth, w, h, box, &c)) {
+                    r.status = "no depth";
+                    continue;
                 }
-                const double ms = std::chrono::duration<double, std::milli>(Clock::now() - tr).count();
-                res.ms += ms;
-                t_refine += ms;
+                q.centre = c;
             }
-            res.est = est.pose;
-            const ObjGeom& og = model_geom[inst.obj_id];
-            const geom::Points& mp = og.pts;
-            res.found = true;
-            res.add_mm = geom::add(est.pose, inst.pose, mp);
-            res.adds_mm = geom::adds(est.pose, inst.pose, mp);
-            // Modulo the geometric symmetries S: the GT pose composed with S is as right.
-            res.addsym_mm = geom::add_sym(est.pose, inst.pose, mp, og.syms);
-            res.rot_sym_deg = geom::rotation_error_sym_deg(est.pose.R, inst.pose.R, og.syms);
-            res.rot_deg = geom::rotation_error_deg(est.pose.R, inst.pose.R);
-            res.trans_mm = geom::translation_error(est.pose.t, inst.pose.t);
-            results.push_back(res);
+            reqs.push_back(q);
+            req_of.push_back(k);
         }
+        pipe.crop(depth.data(), K, reqs, &outs);
+        // The ground-truth object points of each crop (training's label rule; outside the
+        // timed stages): the seg IoU, and the oracle inputs when asked for.
+        gt_obj.assign(reqs.size(), {});
+        gt_t.resize(reqs.size());
+        oracles.assign(reqs.size(), infer::Oracle{});
+        for (size_t i = 0; i < reqs.size(); ++i) {
+            if (!outs[i].ok()) continue;
+            const data::Instance& inst = *insts[req_of[i]];
+            gt_obj[i] = pipe.mesh(inst.obj_id)->tree->label_points(outs[i].crop, inst.pose,
+                                                                   float(opt.label_threshold_mm));
+            gt_t[i] = inst.pose.t.cast<float>();
+            if (opt.oracle_seg) oracles[i].object_mask = &gt_obj[i];
+            if (opt.oracle_t) oracles[i].translation = &gt_t[i];
+        }
+        pipe.estimate(depth.data(), K, &outs, &oracles);
+        for (size_t i = 0; i < reqs.size(); ++i) {
+            const infer::PoseOutcome& o = outs[i];
+            const data::Instance& inst = *insts[req_of[i]];
+            InstanceResult& r = res[req_of[i]];
+            r.box = o.box;
+            r.status = infer::to_string(o.status);
+            r.ms = o.ms_crop + o.ms_seg + o.ms_t + o.ms_rot + o.ms_refine;
+            t_crop += o.ms_crop;
+            t_seg += o.ms_seg;
+            t_t += o.ms_t;
+            t_rot += o.ms_rot;
+            t_refine += o.ms_refine;
+            if (o.num_crop_points > 0 && !gt_obj[i].empty()) {
+                const int n_seen = opt.crop_points > 0 ? opt.crop_points : int(o.crop.rows());
+                r.seg_iou = rows_iou(nn::even_sample(int(o.crop.rows()), n_seen), o.object_rows,
+                                     gt_obj[i]);
+            }
+            if (!o.ok()) continue;
+            const ObjGeom& og = model_geom[inst.obj_id];
+            if (o.refined) {
+                geom::Points obs(int64_t(o.object_rows.size()), 3);
+                for (size_t j = 0; j < o.object_rows.size(); ++j)
+                    obs.row(int64_t(j)) = o.crop.row(o.object_rows[j]);
+                r.refine_hyp = o.refine_hypothesis;
+                r.refine_cluster = o.refine_cluster;
+                r.fit_mm = o.fit_mm;
+                r.gt_fit_mm = geom::fit_error(*pipe.mesh(inst.obj_id)->tree, obs, inst.pose,
+                                              0.1 * meta.at(inst.obj_id).diameter);
+            }
+            r.est = o.pose;
+            r.found = true;
+            r.add_mm = geom::add(o.pose, inst.pose, og.pts);
+            r.adds_mm = geom::adds(o.pose, inst.pose, og.pts);
+            // Modulo the geometric symmetries S: the GT pose composed with S is as right.
+            r.addsym_mm = geom::add_sym(o.pose, inst.pose, og.pts, og.syms);
+            r.rot_sym_deg = geom::rotation_error_sym_deg(o.pose.R, inst.pose.R, og.syms);
+            r.rot_deg = geom::rotation_error_deg(o.pose.R, inst.pose.R);
+            r.trans_mm = geom::translation_error(o.pose.t, inst.pose.t);
+        }
+        results.insert(results.end(), res.begin(), res.end());
     }
     const double n_inst = rep.instances;
     rep = aggregate(results, meta);
@@ -482,4 +484,4 @@ std::string report_json(const EvalReport& r) {
     return j.dump(2);
 }
 
-}  // namespace g2l::train
+}  // namespace g2l::eval

@@ -1,0 +1,166 @@
+// SPDX-License-Identifier: MIT
+// The one road from a depth frame and 2D boxes to poses (spec §2-§4 + the depth refinement):
+// clip the box → sphere centre (the class-probability peak, else the box's depth centre) →
+// crop (geometry/crop.h) → the compiled networks (nn::PoseEngine), one box at a time →
+// refinement against the object's mesh (geometry/refine.h). g2l::PoseEstimator (the library a
+// user links), g2l_eval and g2l_bench all run this code; evaluation adds only the ground truth
+// it compares with, and optional oracle inputs between the crop and the networks.
+//
+// Internal (not installed): the public face is include/g2l/pose_estimator.h.
+#pragma once
+
+#include <Eigen/Core>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "geometry/model_info.h"
+#include "geometry/refine.h"
+#include "geometry/types.h"
+#include "nn/models/g2l_engine.h"
+#include "nn/models/g2l_io.h"
+
+namespace g2l::infer {
+
+/// The depth refinement of each pose.
+enum class Refine {
+    none,   ///< the networks' pose as it is
+    icp,    ///< ICP of the object points onto the mesh from the networks' pose
+    turns,  ///< also from that pose turned by the model box's near-symmetric turns; best fit wins
+};
+/// "none" / "icp" / "turns" (the spelling of every command line and config); anything else
+/// throws g2l::Error naming `what` and the value.
+Refine parse_refine(const std::string& text, const std::string& what);
+const char* to_string(Refine r);
+
+/// The crop around the sphere centre (spec §2; geometry/crop.h).
+enum class CropKind { sphere, frustum, slab };
+/// "sphere" / "frustum" / "slab"; anything else throws g2l::Error naming `what` and the value.
+CropKind parse_crop(const std::string& text, const std::string& what);
+const char* to_string(CropKind c);
+
+/// What the refinement (and evaluation's object-point rule) needs of one object's mesh,
+/// prepared once per object: the surface k-d tree (vertices + surface samples), and for the
+/// refinement the tree points' normals and the closest-point grid.
+struct PreparedMesh {
+    std::unique_ptr<geom::ModelKdTree> tree;
+    geom::Points normals;
+    geom::ClosestPointGrid grid;
+    geom::ModelInfo info;  ///< the box and diameter the refinement uses
+    /// Throws g2l::Error for a mesh without vertices or an info with diameter <= 0.
+    static PreparedMesh from_mesh(const geom::Mesh& mesh, const geom::ModelInfo& info,
+                                  bool for_refine);
+};
+
+/// One box to pose.
+struct PoseRequest {
+    int obj_id = 0;
+    geom::Box2i box;                 ///< pixels; clipped to the image here
+    double peak_x = -1, peak_y = -1; ///< the class-probability peak (px); < 0: none
+    /// The sphere centre (mm, camera frame) when the caller knows it (evaluation's
+    /// ground-truth-mask protocol); otherwise the peak's depth, else the box's depth centre.
+    std::optional<Eigen::Vector3d> centre;
+};
+
+enum class PoseStatus {
+    ok,
+    unknown_object,         ///< not an object of the model
+    box_outside_image,      ///< the box does not overlap the image
+    no_depth,               ///< no valid depth at the sphere centre
+    too_few_points,         ///< fewer than 10 crop points
+    too_few_object_points,  ///< the segmentation kept fewer than 10 points
+};
+const char* to_string(PoseStatus s);
+
+/// What happened to one request. `crop` and `object_rows` stay valid until the next call.
+struct PoseOutcome {
+    int obj_id = 0;
+    PoseStatus status = PoseStatus::ok;
+    geom::Box2i box;                  ///< the box used (clipped)
+    geom::Points crop;                ///< the crop points the networks got (camera frame, mm)
+    std::vector<int> object_rows;     ///< crop rows taken as object (segmentation or oracle)
+    geom::Pose pose;                  ///< valid when status == ok
+    int num_crop_points = 0, num_object_points = 0;
+    double ms_crop = 0, ms_seg = 0, ms_t = 0, ms_rot = 0, ms_refine = 0;
+    bool refined = false;             ///< a mesh refined the pose
+    double fit_mm = -1;               ///< the refinement's final fit (geometry/refine.h)
+    int refine_hypothesis = -1, refine_cluster = -1;
+    bool ok() const { return status == PoseStatus::ok; }
+};
+
+/// Oracle inputs for one request (evaluation only): the ground-truth object points replace the
+/// segmentation, the ground-truth translation replaces the T-net's. Null = the network's.
+struct Oracle {
+    const std::vector<uint8_t>* object_mask = nullptr;  ///< one flag per crop row
+    const Eigen::Vector3f* translation = nullptr;
+};
+
+/// What the pipeline needs of a pose model. The network is borrowed (in eval mode, must
+/// outlive the pipeline; the compiled engine copies its weights at construction).
+struct PipelineModel {
+    nn::G2LNet* net = nullptr;
+    std::map<int, int> class_of;  ///< obj_id -> class index
+    std::vector<std::vector<Eigen::Vector3f>> keypoints;  ///< class index -> model keypoints
+    std::map<int, double> diameter;  ///< obj_id -> mm; the sphere radius is radius_scale x it
+    std::string crop = "sphere";     ///< the crop the network was trained with
+    double radius_scale = 1.0;
+    int points = 0;                  ///< seg-net input points per crop (0 = the whole crop)
+    int seg_points = 2000;           ///< object points fed to the T-net and the rotation blocks
+    /// A loaded model file's (its diameters: the stored ones).
+    static PipelineModel of(const nn::LoadedModel& m);
+};
+
+struct PipelineOptions {
+    int crop_points = -1;    ///< seg-net input points (-1: the model's `points`; 0: all)
+    int object_points = -1;  ///< object points to the T-net / rotation (-1: the model's)
+    Refine refine = Refine::none;
+};
+
+class FramePipeline {
+public:
+    /// Throws g2l::Error for a null network, options out of range, or a crop kind other than
+    /// sphere / frustum / slab. (An object without a diameter is refused when a box of it is
+    /// cropped, naming it.)
+    FramePipeline(PipelineModel model, const PipelineOptions& opt);
+    ~FramePipeline();
+    FramePipeline(FramePipeline&&) noexcept;
+    FramePipeline& operator=(FramePipeline&&) noexcept;
+
+    /// The mesh of object `obj_id` (mm, model frame) with its box and diameter `info`: what the
+    /// refinement needs is built once, here. An object without a mesh keeps the networks' pose.
+    void add_mesh(int obj_id, const geom::Mesh& mesh, const geom::ModelInfo& info);
+    /// The prepared mesh of an object, or null.
+    const PreparedMesh* mesh(int obj_id) const;
+
+    const PipelineModel& model() const { return model_; }
+    const PipelineOptions& options() const { return opt_; }
+    Refine refine() const { return opt_.refine; }
+
+    /// Step 1: the crop of every request (`depth_mm` is K.height x K.width, 0 = no depth).
+    void crop(const float* depth_mm, const geom::Intrinsics& K,
+              const std::vector<PoseRequest>& requests, std::vector<PoseOutcome>* out);
+    /// Step 2: the networks for every cropped request (one engine call each), then the refinement (when the
+    /// options ask for it and the object has a mesh). `oracles` (optional): one per outcome.
+    void estimate(const float* depth_mm, const geom::Intrinsics& K,
+                  std::vector<PoseOutcome>* outcomes, const std::vector<Oracle>* oracles = nullptr);
+    /// crop + estimate.
+    void run(const float* depth_mm, const geom::Intrinsics& K,
+             const std::vector<PoseRequest>& requests, std::vector<PoseOutcome>* out);
+
+private:
+    PipelineModel model_;
+    PipelineOptions opt_;
+    CropKind crop_kind_;
+    std::unique_ptr<nn::PoseEngine> engine_;
+    std::map<int, PreparedMesh> meshes_;
+    // Reused between frames.
+    std::vector<nn::PoseQuery> queries_;
+    std::vector<size_t> query_of_;  // outcome index of each query
+    std::vector<nn::PoseEstimate> results_;
+    std::vector<nn::PoseQuery> single_;
+    std::vector<nn::PoseEstimate> single_out_;
+};
+
+}  // namespace g2l::infer

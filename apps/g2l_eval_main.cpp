@@ -361,7 +361,7 @@ int main(int argc, char** argv) {
         std::string json_all = "[";
         for (size_t i = 0; i < sets_to_eval.size(); ++i) {
             g2l::eval::EvalOptions eo;
-            eo.crop = m.crop;
+            eo.crop = g2l::infer::parse_crop(m.crop, checkpoint + ": crop");
             eo.radius_scale = m.radius_scale;
             eo.crop_points = crop_points >= 0 ? crop_points : m.points;
             eo.max_object_points = object_points > 0 ? object_points : m.seg_points;
@@ -370,7 +370,7 @@ int main(int argc, char** argv) {
             eo.centre_from_mask = centre_from_mask;
             eo.oracle_seg = oracle == "seg" || oracle == "seg+t";
             eo.oracle_t = oracle == "t" || oracle == "seg+t";
-            eo.refine = refine;
+            eo.refine = g2l::infer::parse_refine(refine, "--refine");
             if (eo.min_visib_fract > 0) {
                 bool annotated = false;
                 for (const auto& f : sets_to_eval[i].second.frames())

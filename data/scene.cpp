@@ -137,6 +137,7 @@ void validate(const SceneConfig& c, const std::string& where) {
               ": upright_prob must be in [0, 1], got ", c.upright_prob);
     for (const auto& [name, p] : {std::pair<const char*, double>{"tall_prob", c.tall_prob},
                                   {"on_block_prob", c.on_block_prob},
+                                  {"on_object_prob", c.on_object_prob},
                                   {"lean_prob", c.lean_prob}}) {
         G2L_CHECK(std::isfinite(p) && p >= 0 && p <= 1, where, ": ", name,
                   " must be in [0, 1], got ", p);
@@ -460,8 +461,11 @@ std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_resting(
         int on = -1;  // the block it rests on
         if (!blocks.empty() && cfg_.on_block_prob > 0 && rng.uniform() < cfg_.on_block_prob)
             on = int(rng.below(blocks.size()));
+        int under = -1;  // the object it rests on
+        if (on < 0 && k > 0 && cfg_.on_object_prob > 0 && rng.uniform() < cfg_.on_object_prob)
+            under = int(rng.below(k));
         Eigen::Vector2d xy = Eigen::Vector2d::Zero();
-        for (int attempt = 0; attempt < 100; ++attempt) {
+        for (int attempt = 0; attempt < 100 && under < 0; ++attempt) {
             if (on >= 0) {  // somewhere on the top face's central half
                 const Block& b = blocks[size_t(on)];
                 const Eigen::Vector2d local(rng.uniform(-0.25, 0.25) * b.size.x(),
@@ -480,7 +484,26 @@ std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_resting(
                                0.5 * std::min(blocks[b].size.x(), blocks[b].size.y());
             if (ok) break;
         }
-        const double base = on >= 0 ? blocks[size_t(on)].size.z() : 0.0;
+        double base = on >= 0 ? blocks[size_t(on)].size.z() : 0.0;
+        if (under >= 0) {
+            // Over the middle of the object beneath (up to a quarter of its radius off), on
+            // its highest vertex within this object's footprint.
+            const geom::Pose& pu = pose_w[size_t(under)];
+            const ModelGeom& mu = model(chosen[size_t(under)]);
+            const double ang = rng.uniform(0, 360) * kDeg, off = 0.25 * mu.radius * rng.uniform();
+            xy = world[size_t(under)].first.head<2>() + off * Eigen::Vector2d(std::cos(ang), std::sin(ang));
+            const double foot = 0.5 * m.radius;
+            const geom::Points& V = mu.mesh->vertices;
+            const Eigen::Index step = std::max<Eigen::Index>(1, V.rows() / 20000);
+            double top = 0, under_foot = -1;  // highest vertex overall / within the footprint
+            for (Eigen::Index i = 0; i < V.rows(); i += step) {
+                const Eigen::Vector3d q = pu.R * V.row(i).cast<double>().transpose() + pu.t;
+                top = std::max(top, q.z());
+                if ((q.head<2>() - xy).norm() <= foot) under_foot = std::max(under_foot, q.z());
+            }
+            // A coarse mesh (a box of 8 corners) may have no vertex under the footprint: its top.
+            base = under_foot >= 0 ? under_foot : top;
+        }
         geom::Pose pw;
         pw.R = R;
         if (lean) {  // lowest vertex on the support

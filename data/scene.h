@@ -83,6 +83,10 @@ struct SceneConfig {
     /// Per object, the probability that it rests on top of a block (when the frame has one)
     /// instead of on the table.
     double on_block_prob = 0;
+    /// Per object after the first, the probability that it rests on top of an object placed
+    /// before it (a target or a distractor): on the highest vertex of that object under its
+    /// footprint — a box on the wooden block, a can on a box.
+    double on_object_prob = 0;
     /// Per object, the probability that it leans: its resting rotation tilted about a random
     /// horizontal axis by up to lean_max_deg, then lowered until its lowest vertex touches its
     /// support — an object propped against another, as real tables show.

@@ -153,6 +153,7 @@ SceneConfig parse_scene_config(const std::string& json_text, const std::string& 
         {"blocks_max", as_int(c.blocks_max)},
         {"block_size_mm", as_array2(c.block_size_mm)},
         {"on_block_prob", as_double(c.on_block_prob)},
+        {"on_object_prob", as_double(c.on_object_prob)},
         {"lean_prob", as_double(c.lean_prob)},
         {"lean_max_deg", as_double(c.lean_max_deg)},
         {"table_spread_mm", as_double(c.table_spread_mm)},
@@ -227,6 +228,7 @@ std::string scene_config_to_json(const SceneConfig& c) {
     j["blocks_max"] = c.blocks_max;
     j["block_size_mm"] = c.block_size_mm;
     j["on_block_prob"] = c.on_block_prob;
+    j["on_object_prob"] = c.on_object_prob;
     j["lean_prob"] = c.lean_prob;
     j["lean_max_deg"] = c.lean_max_deg;
     j["table_spread_mm"] = c.table_spread_mm;

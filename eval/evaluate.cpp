@@ -126,14 +126,14 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
     pm.net = &net;
     pm.class_of = class_of;
     pm.keypoints = keypoints;
-    pm.crop = opt.crop;
+    pm.crop = infer::to_string(opt.crop);
     pm.radius_scale = opt.radius_scale;
     for (const auto& [id, om] : ds.models())
         if (class_of.count(id)) pm.diameter[id] = om.info.diameter;
     infer::PipelineOptions po;
     po.crop_points = std::max(0, opt.crop_points);
     po.object_points = opt.max_object_points;
-    po.refine = infer::parse_refine(opt.refine, "evaluate: refine");
+    po.refine = opt.refine;
     const bool was_training = net.is_training();
     net.eval();
     autograd::NoGradGuard no_grad;
@@ -217,7 +217,7 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                 r.det_iou = geom::box_iou(d.x, d.y, d.w, d.h, gt.x, gt.y, gt.w, gt.h);
                 if (d.peak_x >= 0 && d.peak_y >= 0) q.peak_x = d.peak_x, q.peak_y = d.peak_y;
             }
-            if (opt.centre_from_mask && opt.crop != "frustum") {
+            if (opt.centre_from_mask && opt.crop != infer::CropKind::frustum) {
                 Eigen::Vector3d c;
                 const geom::Box2i box = geom::clip_box(q.box, w, h);
                 r.box = box;
@@ -405,9 +405,9 @@ std::string report_markdown(const EvalReport& r) {
              : r.oracle == "t" ? std::string("ground-truth translation")
                                : std::string("ground-truth object points and translation")) +
             " replace the network's.\n\n";
-    if (r.refine != "none")
-        s += "Depth refinement (" + r.refine + "): " +
-             (r.refine == "icp" ? std::string("ICP of the object points onto the mesh")
+    if (r.refine != infer::Refine::none)
+        s += std::string("Depth refinement (") + infer::to_string(r.refine) + "): " +
+             (r.refine == infer::Refine::icp ? std::string("ICP of the object points onto the mesh")
                                 : std::string("ICP onto the mesh from the pose and its near-symmetric "
                                               "turns, the best depth fit wins")) +
              ".\n\n";
@@ -478,7 +478,7 @@ std::string report_json(const EvalReport& r) {
     j["average"] = obj(r.average);
     j["timing_ms"] = {{"crop", r.ms_crop}, {"seg", r.ms_seg}, {"t", r.ms_t}, {"rot", r.ms_rot},
                       {"refine", r.ms_refine}};
-    j["refine"] = r.refine;
+    j["refine"] = infer::to_string(r.refine);
     j["instances"] = r.instances;
     j["oracle"] = r.oracle;
     return j.dump(2);

@@ -10,12 +10,13 @@
 #include "data/dataset.h"
 #include "data/detections.h"
 #include "geometry/types.h"
+#include "infer/frame_pipeline.h"
 #include "nn/models/g2l_net.h"
 
 namespace g2l::eval {
 
 struct EvalOptions {
-    std::string crop = "sphere";     ///< sphere | frustum | slab (as in training)
+    infer::CropKind crop = infer::CropKind::sphere;  ///< as in training
     double radius_scale = 1.0;       ///< sphere radius = radius_scale x diameter
     double min_visib_fract = 0.0;    ///< instances below are skipped (not counted)
     int64_t max_instances = 0;       ///< 0 = all
@@ -37,9 +38,9 @@ struct EvalOptions {
     bool oracle_seg = false;
     bool oracle_t = false;
     double label_threshold_mm = 8.0;  ///< the object-point rule of the seg IoU and oracle_seg
-    /// Depth refinement of each pose (geometry/refine.h) against the dataset's mesh: "none",
-    /// "icp" (ICP from the network's pose) or "turns" (also from its near-symmetric turns).
-    std::string refine = "none";
+    /// Depth refinement of each pose (geometry/refine.h) against the dataset's mesh: none, icp
+    /// (ICP from the network's pose) or turns (also from its near-symmetric turns).
+    infer::Refine refine = infer::Refine::none;
 };
 
 /// Per-object and overall figures. Misses (no pose) count as failures, with distance inf in
@@ -76,7 +77,7 @@ struct EvalReport {
     ObjectScores average;               ///< objects' mean (acc, AUCs); "all" counts for others
     double ms_crop = 0, ms_seg = 0, ms_t = 0, ms_rot = 0;  ///< mean per instance
     double ms_refine = 0;                  ///< depth refinement, mean per instance
-    std::string refine = "none";           ///< EvalOptions::refine
+    infer::Refine refine = infer::Refine::none;  ///< EvalOptions::refine
     int instances = 0;
     std::string oracle = "none";  ///< oracle inputs used: none, seg, t or seg+t (EvalOptions)
 };

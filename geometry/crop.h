@@ -11,32 +11,9 @@
 
 namespace g2l::geom {
 
-/// The paper's crop: keeps points with |p - centre| < radius (Euclidean, strict).
-/// Throws g2l::Error if radius is not finite and > 0 or the centre is not finite.
-std::vector<int> crop_sphere(const Points& pts, const Eigen::Vector3d& centre, double radius);
-
-/// The released code's crop: keeps points with |z - centre_z| < half_depth (a depth slab).
-/// Throws g2l::Error if half_depth is not finite and > 0 or centre_z is not finite.
-std::vector<int> crop_slab(const Points& pts, double centre_z, double half_depth);
-
-/// Thresholds of crop_slab_adaptive; the defaults reproduce the official chooselimt_test.
-struct AdaptiveSlabParams {
-    double min_z = 20.0;        ///< points with z <= min_z (mm) are dropped first
-    int min_points_2dia = 1000;  ///< fewer points at 1 x diameter -> widen to 2 x diameter
-    int min_points_3dia = 500;   ///< still fewer at 2 x diameter -> widen to 3 x diameter
-};
-
-/// chooselimt_test (spec §1.3): among points with z > min_z, keep |z - centre_z| < diameter; if
-/// fewer than min_points_2dia remain use 2 x diameter; if then fewer than min_points_3dia remain
-/// use 3 x diameter (kept whatever the count). `factor_used`, if non-null, receives 1, 2 or 3.
-/// Throws g2l::Error if diameter is not finite and > 0 or centre_z is not finite.
-std::vector<int> crop_slab_adaptive(const Points& pts, double centre_z, double diameter,
-                                    const AdaptiveSlabParams& params = {},
-                                    int* factor_used = nullptr);
-
 /// The one crop step of training samples and inference: indices (ascending) of the rows of
 /// `pts` kept by `crop` around `centre` — "sphere": |p - centre| < radius, "slab":
-/// |z - centre_z| < radius (the predicates of crop_sphere / crop_slab), "frustum": every row.
+/// |z - centre_z| < radius (the released code's depth slab), "frustum": every row.
 /// Serial (several sample-making threads call it at once). Throws g2l::Error for another crop
 /// name, or (sphere/slab) a radius that is not finite and > 0 or a centre that is not finite.
 std::vector<int> crop_indices(const std::string& crop, const Points& pts,

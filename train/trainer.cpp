@@ -482,7 +482,7 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
             for (const auto& v : rd.val) {
                 if (!v.bop) continue;
                 EvalOptions eo;
-                eo.crop = cfg.sampling.crop;
+                eo.crop = infer::parse_crop(cfg.sampling.crop, "sampling.crop");
                 eo.radius_scale = cfg.sampling.radius_scale;
                 eo.crop_points = cfg.sampling.points;
                 eo.max_object_points = cfg.sampling.seg_points;

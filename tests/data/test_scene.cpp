@@ -500,6 +500,24 @@ TEST_CASE("resting mode: tallest poses, blocks to stand on, leaning objects", "[
             }
         }
     }
+    SECTION("on_object_prob 1: every object after the first rests on one placed before it") {
+        cfg.on_object_prob = 1;
+        cfg.targets_min = cfg.targets_max = 2;
+        SceneGenerator gen(cfg, m.list());
+        for (int64_t idx = 0; idx < 6; ++idx) {
+            gen.render_frame(idx, f);
+            fit_table(f, &up, &mean);
+            REQUIRE(f.instances.size() == 2);
+            const RenderedInstance& a = f.instances[0];
+            const RenderedInstance& b = f.instances[1];
+            INFO("frame " << idx);
+            CHECK(lowest(*mesh_of(a.obj_id), a, up, mean) == Approx(0.0).margin(1.5));
+            // b is above the table by at least a third of a's smallest extent (30 mm boxes,
+            // a 70 mm sphere: >= 10 mm), and above a's centre.
+            CHECK(lowest(*mesh_of(b.obj_id), b, up, mean) > 10.0);
+            CHECK(up.dot(b.pose.t - a.pose.t) > 0);
+        }
+    }
     SECTION("lean_prob 1: objects tilt off their stable faces and still touch the table") {
         cfg.lean_prob = 1;
         cfg.lean_max_deg = 30;
@@ -543,5 +561,9 @@ TEST_CASE("resting mode: tallest poses, blocks to stand on, leaning objects", "[
         CHECK(b.lean_prob == 0.4);
         CHECK(b.lean_max_deg == 25);
         CHECK(b.block_size_mm[1] == 150);
+        cfg.on_object_prob = 0.15;
+        CHECK(parse_scene_config(scene_config_to_json(cfg), "round trip").on_object_prob == 0.15);
+        CHECK_THROWS_WITH(parse_scene_config(R"({"on_object_prob": 2})", "s.json"),
+                          Contains("on_object_prob must be in [0, 1], got 2"));
     }
 }

@@ -28,11 +28,11 @@ TEST_CASE("g2l_eval's evaluation and PoseEstimator give bitwise the same poses o
           {"turns", g2l::Refinement::turns}}) {
         INFO("refinement " << refine);
         g2l::eval::EvalOptions eo;
-        eo.crop = m.crop;
+        eo.crop = g2l::infer::parse_crop(m.crop, "crop");
         eo.radius_scale = m.radius_scale;
         eo.crop_points = m.points;
         eo.max_object_points = m.seg_points;
-        eo.refine = refine;
+        eo.refine = g2l::infer::parse_refine(refine, "refine");
         std::vector<g2l::eval::InstanceResult> inst;
         g2l::eval::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, &inst);
         REQUIRE(inst.size() == 4);

@@ -87,7 +87,7 @@ TEST_CASE("evaluate_instances: detector boxes equal to the GT boxes give the GT-
     const data::Dataset ds = data::open_bop(root, "train_real", {});
     nn::LoadedModel m = nn::load_model(std::string(G2L_SOURCE_DIR) + "/models/ycbv_sim2real.g2l");
     EvalOptions eo;
-    eo.crop = m.crop;
+    eo.crop = g2l::infer::parse_crop(m.crop, "crop");
     eo.radius_scale = m.radius_scale;
     eo.crop_points = m.points;
     eo.max_object_points = m.seg_points;

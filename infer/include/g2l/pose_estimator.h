@@ -134,8 +134,11 @@ struct EstimatorOptions {
                               ///< `sampling.points`; 0: the whole crop)
     int object_points = -1;   ///< object points fed to the translation and rotation networks
                               ///< (-1: the model's `sampling.seg_points`)
-    std::string models_info;  ///< a BOP models_info.json giving the object diameters, for
-                              ///< model files that do not store them (older checkpoints)
+    /// A BOP models_info.json: the object diameters for model files that do not store them
+    /// (older checkpoints), and the boxes and diameters the refinement uses for the meshes it
+    /// lists (without it they are measured on the mesh) — give the dataset's file to get
+    /// exactly g2l_eval's poses.
+    std::string models_info;
     /// A 2D detector export (g2l_train with a "task": "detector" config writes
     /// <run_dir>/detector.g2l): enables detect() and estimate(frame) without boxes.
     std::string detector;

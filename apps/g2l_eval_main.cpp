@@ -5,6 +5,7 @@
 #include "core/cli.h"
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -266,7 +267,9 @@ int main(int argc, char** argv) {
                         {"detections", row.detections}};
                 std::ofstream f(json_out);
                 f << j.dump(2) << "\n";
-                G2L_CHECK(f.good(), "--json '", json_out, "': cannot write the file");
+                f.flush();
+                G2L_CHECK(f.good(), "--json '", json_out, "': cannot write the file: ",
+                          std::strerror(errno));
             }
             return 0;
         } catch (const std::exception& e) {
@@ -404,8 +407,10 @@ int main(int argc, char** argv) {
         json_all += "]";
         if (!json_out.empty()) {
             std::ofstream f(json_out);
-            if (!f) throw std::runtime_error("cannot write '" + json_out + "'");
+            G2L_CHECK(f.good(), "--json '", json_out, "': cannot open the file: ", std::strerror(errno));
             f << json_all << "\n";
+            f.flush();
+            G2L_CHECK(f.good(), "--json '", json_out, "': cannot write the file: ", std::strerror(errno));
         }
         if (csv_out.is_open()) {
             csv_out.close();

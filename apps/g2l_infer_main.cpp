@@ -277,6 +277,7 @@ int main(int argc, char** argv) {
         if (out_json.empty()) {
             errno = 0;
             const bool ok = std::fputs(text.c_str(), stdout) >= 0 && std::fflush(stdout) == 0;
+            if (!ok) g2l::cli::stdout_failure_reported();
             G2L_CHECK(ok, "cannot write the JSON to the standard output: ",
                       errno ? std::strerror(errno) : "write error");
         } else {

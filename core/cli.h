@@ -8,8 +8,10 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <exception>
 #include <string>
 
@@ -18,9 +20,36 @@ namespace g2l::cli {
 constexpr int kRunError = 1;
 constexpr int kUsageError = 2;
 
+namespace detail {
+inline const char*& tool_name() {
+    static const char* name = "g2l";
+    return name;
+}
+inline bool& stdout_reported() {
+    static bool reported = false;
+    return reported;
+}
+// At exit: what the tool printed must have reached its standard output (a full disk, /dev/full,
+// a closed pipe); otherwise one line on stderr and exit code kRunError, never a silent 0.
+inline void check_stdout_at_exit() {
+    if (stdout_reported()) return;  // the tool said it already (and exits 1)
+    errno = 0;
+    if (std::fflush(stdout) != 0 || std::ferror(stdout)) {
+        const int err = errno;
+        std::fprintf(stderr, "%s: error: cannot write the standard output: %s\n", tool_name(),
+                     err ? std::strerror(err) : "write error");
+        std::_Exit(kRunError);
+    }
+}
+}  // namespace detail
+
 /// Parses the command line. Returns -1 when the tool should go on, otherwise the exit code: 0
-/// after printing --help, kUsageError after one line naming the problem on stderr.
+/// after printing --help, kUsageError after one line naming the problem on stderr. Also makes
+/// the process check at exit that its standard output was written (exit 1 naming the reason).
 inline int parse(CLI::App& app, int argc, char** argv, const char* tool) {
+    detail::tool_name() = tool;
+    static const bool registered = std::atexit(detail::check_stdout_at_exit) == 0;
+    (void)registered;
     try {
         app.parse(argc, argv);
         return -1;
@@ -35,6 +64,10 @@ inline int parse(CLI::App& app, int argc, char** argv, const char* tool) {
         return kUsageError;
     }
 }
+
+/// For a tool that reports its own standard-output failure (naming what it wrote): the check
+/// at exit stays quiet.
+inline void stdout_failure_reported() { detail::stdout_reported() = true; }
 
 /// A CLI11 check: an integer or number >= lo (the message names the value, not a 300-digit
 /// bound).

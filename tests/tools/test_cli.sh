@@ -184,6 +184,16 @@ if [ -w /dev/full ]; then
         --image-id 1 --box 8,186,132,139,191 >/dev/full 2>"$T/err"
     [ $? -eq 1 ] || fail "g2l_infer > /dev/full: exit 1 expected"
     has "cannot write the JSON to the standard output: No space left on device"
+    # Every tool: what it prints must reach its standard output, else exit 1 naming the reason.
+    for tool in apps/g2l_train apps/g2l_eval apps/g2l_bench apps/g2l_rotstudy apps/g2l_render apps/g2l_demo; do
+        "$B/$tool" --help >/dev/full 2>"$T/err"
+        [ $? -eq 1 ] || fail "$tool --help > /dev/full: exit 1 expected"
+        has "cannot write the standard output: No space left on device"
+    done
+    # A figure file that cannot be written is an error, not a silent 0.
+    expect 1 "$B/apps/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" \
+        --split train_real --refine none --json /dev/full
+    has "--json '/dev/full': cannot write the file: No space left on device"
 fi
 printf '{"fx": 500, "fx": 600, "fy": 500, "cx": 320, "cy": 240}' > "$T/camdup.json"
 expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$T/camdup.json" --box 8,186,132,139,191

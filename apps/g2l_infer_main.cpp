@@ -14,6 +14,7 @@
 #include "core/cli.h"
 #include "core/error.h"
 #include "core/json.h"
+#include "data/bop.h"
 #include "data/dataset.h"
 #include "data/detections.h"
 #include "data/draw.h"
@@ -22,59 +23,6 @@
 namespace {
 
 using json = nlohmann::json;
-
-// Intrinsics and depth scale from a camera JSON: a BOP camera.json ({fx, fy, cx, cy,
-// depth_scale, ...}), one scene_camera.json entry ({cam_K, depth_scale}), or a whole
-// scene_camera.json (then `image_id` picks the entry).
-// `width` / `height` get the camera's image size when the file gives one (a BOP camera.json
-// does), else stay 0.
-void read_camera(const std::string& path, int image_id, g2l::CameraIntrinsics* K, double* scale,
-                 int* width, int* height) {
-    json j = g2l::parse_json_file(path);
-    G2L_CHECK(j.is_object(), "camera '", path, "': expected a JSON object");
-    if (!j.contains("cam_K") && !j.contains("fx")) {
-        G2L_CHECK(image_id >= 0, "camera '", path, "': neither 'cam_K' nor 'fx' at the top level; "
-                  "for a scene_camera.json give --image-id");
-        const std::string key = std::to_string(image_id);
-        G2L_CHECK(j.contains(key), "camera '", path, "': no entry for image ", image_id);
-        j = json(j.at(key));
-    }
-    auto num = [&](const json& v, const std::string& what) {
-        G2L_CHECK(v.is_number() && std::isfinite(v.get<double>()), "camera '", path, "': '", what,
-                  "' must be a finite number, got ", v.dump());
-        return v.get<double>();
-    };
-    if (j.contains("cam_K")) {
-        const json& k = j.at("cam_K");
-        G2L_CHECK(k.is_array() && k.size() == 9, "camera '", path, "': 'cam_K' must hold 9 numbers");
-        K->fx = num(k[0], "cam_K[0]");
-        K->cx = num(k[2], "cam_K[2]");
-        K->fy = num(k[4], "cam_K[4]");
-        K->cy = num(k[5], "cam_K[5]");
-    } else {
-        for (const char* key : {"fx", "fy", "cx", "cy"})
-            G2L_CHECK(j.contains(key), "camera '", path, "': no '", key, "'");
-        K->fx = num(j.at("fx"), "fx");
-        K->fy = num(j.at("fy"), "fy");
-        K->cx = num(j.at("cx"), "cx");
-        K->cy = num(j.at("cy"), "cy");
-    }
-    // Without depth_scale the depth's units are unknown (BOP: 1 for LM, 0.1 for YCB-Video):
-    // guessing 1 would give a pose 10 times too far.
-    G2L_CHECK(j.contains("depth_scale"), "camera '", path, "': no 'depth_scale' (mm per unit of "
-              "the depth PNG, e.g. 1 or 0.1)");
-    *scale = num(j.at("depth_scale"), "depth_scale");
-    for (const char* key : {"width", "height"})
-        if (j.contains(key)) {
-            const double v = num(j.at(key), key);
-            G2L_CHECK(v >= 1 && v <= 100000 && v == std::floor(v), "camera '", path, "': '", key,
-                      "' must be a positive integer, got ", j.at(key).dump());
-            (key[0] == 'w' ? *width : *height) = int(v);
-        }
-    G2L_CHECK(K->fx > 0 && K->fy > 0, "camera '", path, "': focal lengths must be > 0, got fx=",
-              K->fx, " fy=", K->fy);
-    G2L_CHECK(*scale > 0, "camera '", path, "': depth_scale must be > 0, got ", *scale);
-}
 
 }  // namespace
 
@@ -179,10 +127,10 @@ int main(int argc, char** argv) {
             }
         }
         for (const g2l::ObjectBox& b : hand_boxes) boxes.push_back(b);
-        g2l::CameraIntrinsics K;
-        double depth_scale = 1;
-        int cam_w = 0, cam_h = 0;
-        read_camera(camera_path, image_id, &K, &depth_scale, &cam_w, &cam_h);
+        const g2l::data::CameraFile cam = g2l::data::load_camera_file(camera_path, image_id);
+        const g2l::CameraIntrinsics K{cam.fx, cam.fy, cam.cx, cam.cy};
+        const double depth_scale = cam.depth_scale;
+        const int cam_w = cam.width, cam_h = cam.height;
         int w = 0, h = 0;
         const std::vector<uint16_t> depth = g2l::data::load_depth_png(depth_path, &w, &h);
         G2L_CHECK((cam_w == 0 || cam_w == w) && (cam_h == 0 || cam_h == h), "--depth '",

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "data/bop.h"
 #include "core/json.h"
+#include "core/json_reader.h"
 
 #include <Eigen/LU>
 #include <algorithm>
@@ -35,50 +36,16 @@ json read_json(const fs::path& path) {
     return parse_json_strict(ss.str(), "malformed JSON in '" + path.string() + "'");
 }
 
-/// A JSON value together with where it came from, so that errors can say so.
-struct Node {
-    const json& v;
-    const std::string& file;
-    std::string key;  // key path, e.g. "3"[1].cam_t_m2c
+// BOP files are read with the one schema reader (core/json_reader.h), by path: errors read
+// "<file>: '3[1].cam_t_m2c' must be an array of 3 numbers, got [1,2]". Keys we do not use
+// (BOP adds fields over versions: px_count_*, cam_R_w2c, elev, ...) are accepted: these files
+// are written by other tools, unlike our configs.
 
-    Node operator[](const std::string& name) const {
-        G2L_CHECK(v.is_object(), file, ": key ", key, " must be an object, got ", v.type_name());
-        const auto it = v.find(name);
-        const std::string sub = key.empty() ? "\"" + name + "\"" : key + "." + name;
-        G2L_CHECK(it != v.end(), file, ": missing key ", sub);
-        return {*it, file, sub};
-    }
-    Node operator[](size_t i) const {
-        G2L_CHECK(v.is_array() && i < v.size(), file, ": key ", key, " has no element [", i, "]");
-        return {v[i], file, key + "[" + std::to_string(i) + "]"};
-    }
-    bool has(const std::string& name) const { return v.is_object() && v.contains(name); }
-
-    double number() const {
-        G2L_CHECK(v.is_number(), file, ": key ", key, " must be a number, got ", v.type_name(), " ",
-                  v.dump());
-        const double d = v.get<double>();
-        G2L_CHECK(std::isfinite(d), file, ": key ", key, " is not finite: ", v.dump());
-        return d;
-    }
-    int integer() const {
-        G2L_CHECK(v.is_number_integer(), file, ": key ", key, " must be an integer, got ",
-                  v.type_name(), " ", v.dump());
-        return v.get<int>();
-    }
-    std::vector<double> numbers(size_t n) const {
-        G2L_CHECK(v.is_array(), file, ": key ", key, " must be an array of ", n, " numbers, got ",
-                  v.type_name());
-        G2L_CHECK(v.size() == n, file, ": key ", key, " must have ", n, " numbers, got ", v.size());
-        std::vector<double> out(n);
-        for (size_t i = 0; i < n; ++i) out[i] = (*this)[i].number();
-        return out;
-    }
-    size_t list_size() const {
-        G2L_CHECK(v.is_array(), file, ": key ", key, " must be a list, got ", v.type_name());
-        return v.size();
-    }
-};
+/// An array of JSON objects (one per instance).
+const json& need_list(const JsonReader& r, const json& v, const std::string& path) {
+    G2L_CHECK(v.is_array(), r.source(), ": '", path, "' must be an array, got ", v.type_name());
+    return v;
+}
 
 int parse_image_id(const std::string& key, const std::string& file) {
     size_t used = 0;
@@ -99,10 +66,12 @@ std::string fmt06(int v) {
     return buf;
 }
 
-geom::Box2i box_from(const Node& n) {
-    const std::vector<double> b = n.numbers(4);
+geom::Box2i box_from(JsonReader& r, const char* key) {
+    std::vector<double> b;
+    r.nums(key, b, 4);
     for (double x : b) {
-        G2L_CHECK(x == std::floor(x), n.file, ": key ", n.key, " must hold integers, got ", x);
+        G2L_CHECK(x == std::floor(x) && std::abs(x) < 1e9, r.source(), ": '", r.at(key),
+                  "' must hold integers, got ", x);
     }
     // BOP writes [-1, -1, -1, -1] for invisible objects: keep it as an empty box.
     return {static_cast<int>(b[0]), static_cast<int>(b[1]), static_cast<int>(b[2]),
@@ -113,16 +82,18 @@ geom::Box2i box_from(const Node& n) {
 // 1.3e-3. The check only rejects what cannot be a rotation (a typo, a transposed 4x4, ...).
 constexpr double kRotationTol = 1e-2;
 
-geom::Pose pose_from(const Node& inst) {
-    const Node rn = inst["cam_R_m2c"];
-    const std::vector<double> r = rn.numbers(9);
-    const std::vector<double> t = inst["cam_t_m2c"].numbers(3);
+geom::Pose pose_from(JsonReader& inst) {
+    std::vector<double> r, t;
+    inst.require("cam_R_m2c");
+    inst.nums("cam_R_m2c", r, 9);
+    inst.require("cam_t_m2c");
+    inst.nums("cam_t_m2c", t, 3);
     geom::Pose p;
     for (int i = 0; i < 9; ++i) p.R(i / 3, i % 3) = r[i];  // row-major in BOP
     p.t = Eigen::Vector3d(t[0], t[1], t[2]);
     const double orth = (p.R.transpose() * p.R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
-    G2L_CHECK(orth < kRotationTol && p.R.determinant() > 0, rn.file, ": key ", rn.key,
-              " is not a rotation matrix (max |R^T R - I| = ", orth, ", det = ", p.R.determinant(),
+    G2L_CHECK(orth < kRotationTol && p.R.determinant() > 0, inst.source(), ": '",
+              inst.at("cam_R_m2c"), "' is not a rotation matrix (max |R^T R - I| = ", orth, ", det = ", p.R.determinant(),
               ")");
     return p;
 }
@@ -197,9 +168,8 @@ std::map<int, ObjectModel> read_models(const fs::path& root, const std::string& 
                   info_path.string(), "' not found: '", m.mesh_path, "'");
         const std::string key = std::to_string(id);
         if (!names.is_null() && names.contains(key)) {
-            const Node n{names.at(key), names_file, "\"" + key + "\""};
-            G2L_CHECK(n.v.is_string(), names_file, ": key ", n.key, " must be a string");
-            m.name = n.v.get<std::string>();
+            JsonReader nr(names, names_file);
+            nr.text(key.c_str(), m.name);
         } else {
             m.name = default_object_name(name, id);
             if (m.name.empty()) m.name = "obj_" + fmt06(id);
@@ -219,14 +189,13 @@ struct SceneContext {
     int width, height;            // 0 = take from the first image of the scene
 };
 
-void read_instance_info(const Node& info, Instance* inst) {
-    if (info.has("bbox_obj")) inst->bbox_obj = box_from(info["bbox_obj"]);
-    if (info.has("bbox_visib")) inst->bbox_visib = box_from(info["bbox_visib"]);
+void read_instance_info(JsonReader& info, Instance* inst) {
+    if (info.has("bbox_obj")) inst->bbox_obj = box_from(info, "bbox_obj");
+    if (info.has("bbox_visib")) inst->bbox_visib = box_from(info, "bbox_visib");
     if (info.has("visib_fract")) {
-        const Node vf = info["visib_fract"];
-        inst->visib_fract = vf.number();
-        G2L_CHECK(inst->visib_fract >= 0 && inst->visib_fract <= 1 + 1e-6, vf.file, ": key ",
-                  vf.key, " must be in [0, 1], got ", inst->visib_fract);
+        info.num("visib_fract", inst->visib_fract);
+        G2L_CHECK(inst->visib_fract >= 0 && inst->visib_fract <= 1 + 1e-6, info.source(), ": '",
+                  info.at("visib_fract"), "' must be in [0, 1], got ", inst->visib_fract);
     }
 }
 
@@ -238,11 +207,7 @@ std::vector<Frame> read_scene(const SceneContext& sc) {
     const json gt = read_json(gt_path), cam = read_json(cam_path);
     const bool has_info = fs::is_regular_file(info_path);
     const json info = has_info ? read_json(info_path) : json::object();
-    G2L_CHECK(gt.is_object(), gt_file, ": top level must be an object keyed by image id");
-    G2L_CHECK(cam.is_object(), cam_file, ": top level must be an object keyed by image id");
-    G2L_CHECK(info.is_object(), info_file, ": top level must be an object keyed by image id");
-    const Node gt_root{gt, gt_file, ""}, cam_root{cam, cam_file, ""},
-        info_root{info, info_file, ""};
+    JsonReader gt_root(gt, gt_file), cam_root(cam, cam_file), info_root(info, info_file);
 
     const Folder rgb = list_folder(sc.dir / "rgb"), depth = list_folder(sc.dir / "depth");
     const Folder masks = list_folder(sc.dir / "mask_visib");
@@ -266,38 +231,38 @@ std::vector<Frame> read_scene(const SceneContext& sc) {
         }
         G2L_CHECK(cam.contains(key), cam_file, ": image id ", key, " of ", gt_file,
                   " is missing (no key \"", key, "\")");
-        const Node c = cam_root[key];
-        const std::vector<double> k = c["cam_K"].numbers(9);
+        const CameraFile c = parse_camera_entry(cam.at(key), cam_file, key);
         try {
-            fr.K = geom::intrinsics_from_cam_K(k.data(), width, height);
+            fr.K = geom::intrinsics_from_cam_K(c.cam_K().data(), width, height);
         } catch (const Error& e) {
-            G2L_CHECK(false, cam_file, ": key ", c.key, ".cam_K: ", e.what());
+            G2L_CHECK(false, cam_file, ": '", key, ".cam_K': ", e.what());
         }
-        const Node ds = c["depth_scale"];
-        fr.depth_scale = ds.number();
-        G2L_CHECK(fr.depth_scale > 0, cam_file, ": key ", ds.key, " must be > 0, got ",
-                  fr.depth_scale);
+        fr.depth_scale = c.depth_scale;
 
-        const Node insts = gt_root[key];
-        const size_t n = insts.list_size();
+        const json& insts = need_list(gt_root, gt.at(key), key);
+        const size_t n = insts.size();
         if (has_info) {
             G2L_CHECK(info.contains(key), info_file, ": image id ", key, " of ", gt_file,
                       " is missing (no key \"", key, "\")");
-            const size_t ni = info_root[key].list_size();
+            const size_t ni = need_list(info_root, info.at(key), key).size();
             G2L_CHECK(ni == n, info_file, ": key \"", key, "\" lists ", ni, " instances but ",
                       gt_file, " lists ", n);
         }
         for (size_t i = 0; i < n; ++i) {
-            const Node in = insts[i];
+            const std::string at = key + "[" + std::to_string(i) + "]";
+            JsonReader in(insts[i], gt_file, at);
             Instance inst;
-            const Node oid = in["obj_id"];
-            inst.obj_id = oid.integer();
+            in.require("obj_id");
+            in.integer("obj_id", inst.obj_id);
             if (!sc.wanted.empty() && !sc.wanted.count(inst.obj_id)) continue;
-            G2L_CHECK(sc.models.count(inst.obj_id), gt_file, ": key ", oid.key, ": object ",
+            G2L_CHECK(sc.models.count(inst.obj_id), gt_file, ": '", in.at("obj_id"), "': object ",
                       inst.obj_id, " has no model in models_info.json");
             inst.pose = pose_from(in);
             inst.index_in_frame = static_cast<int>(i);
-            if (has_info) read_instance_info(info_root[key][i], &inst);
+            if (has_info) {
+                JsonReader ir(info.at(key)[i], info_file, at);
+                read_instance_info(ir, &inst);
+            }
             inst.mask_visib_path = find_image(masks, stem + "_" + fmt06(static_cast<int>(i)),
                                               {".png"}, what + " instance " + std::to_string(i));
             fr.instances.push_back(std::move(inst));
@@ -343,13 +308,11 @@ BopDataset open_bop(const std::string& root_str, const std::string& split, const
     int width = 0, height = 0;
     const fs::path cam_path = root / "camera.json";
     if (fs::is_regular_file(cam_path)) {
-        const json cam = read_json(cam_path);
-        const std::string file = cam_path.string();
-        const Node c{cam, file, ""};
-        width = c["width"].integer();
-        height = c["height"].integer();
-        G2L_CHECK(width > 0 && height > 0, file, ": width/height must be > 0, got ", width, "x",
-                  height);
+        const CameraFile c = load_camera_file(cam_path.string());
+        width = c.width;
+        height = c.height;
+        G2L_CHECK(width > 0 && height > 0, cam_path.string(),
+                  ": 'width' and 'height' are required (> 0), got ", width, "x", height);
     }
 
     std::vector<std::string> scenes = opt.scenes;
@@ -375,6 +338,69 @@ BopDataset open_bop(const std::string& root_str, const std::string& split, const
     }
     return BopDataset(Dataset(name, root.string(), std::move(frames), models), split,
                       std::move(scenes));
+}
+
+// ---- camera files ----------------------------------------------------------------------------
+
+CameraFile parse_camera_entry(const json& j, const std::string& source, const std::string& path) {
+    JsonReader r(j, source, path);
+    CameraFile c;
+    if (r.has("cam_K")) {
+        std::vector<double> k;
+        r.nums("cam_K", k, 9);
+        // zero skew and a last row (0, 0, 1): checked as the dataset reader does
+        try {
+            (void)geom::intrinsics_from_cam_K(k.data(), 1, 1);
+        } catch (const Error& e) {
+            G2L_CHECK(false, source, ": '", r.at("cam_K"), "': ", e.what());
+        }
+        c.fx = k[0];
+        c.cx = k[2];
+        c.fy = k[4];
+        c.cy = k[5];
+    } else {
+        if (!r.has("fx")) r.require("cam_K");  // neither form: name the BOP one
+        for (const char* key : {"fx", "fy", "cx", "cy"}) r.require(key);
+        r.num("fx", c.fx);
+        r.num("fy", c.fy);
+        r.num("cx", c.cx);
+        r.num("cy", c.cy);
+    }
+    // Without depth_scale the depth's units are unknown (BOP: 1 for LM, 0.1 for YCB-Video):
+    // guessing 1 would give a pose 10 times too far.
+    G2L_CHECK(r.has("depth_scale"), source, ": '", r.at("depth_scale"),
+              "' is required (mm per unit of the depth PNG, e.g. 1 or 0.1)");
+    r.num("depth_scale", c.depth_scale);
+    r.integer("width", c.width);
+    r.integer("height", c.height);
+    G2L_CHECK(c.fx > 0 && c.fy > 0, source, ": focal lengths must be > 0, got fx=", c.fx,
+              " fy=", c.fy);
+    G2L_CHECK(c.depth_scale > 0, source, ": '", r.at("depth_scale"), "' must be > 0, got ",
+              c.depth_scale);
+    G2L_CHECK(c.width >= 0 && c.width <= 100000 && c.height >= 0 && c.height <= 100000, source,
+              ": 'width' / 'height' must be in [1, 100000], got ", c.width, " x ", c.height);
+    return c;
+}
+
+CameraFile parse_camera_file(const std::string& text, const std::string& source, int image_id) {
+    const json j = parse_json_strict(text, source);
+    G2L_CHECK(j.is_object(), source, ": the top level must be a JSON object, got ", j.type_name());
+    if (j.contains("cam_K") || j.contains("fx")) return parse_camera_entry(j, source, "");
+    G2L_CHECK(image_id >= 0, source, ": neither 'cam_K' nor 'fx' at the top level; for a "
+              "scene_camera.json give the image id (--image-id)");
+    const std::string key = std::to_string(image_id);
+    G2L_CHECK(j.contains(key), source, ": no entry for image ", image_id, " (no key \"", key,
+              "\")");
+    return parse_camera_entry(j.at(key), source, key);
+}
+
+CameraFile load_camera_file(const std::string& path, int image_id) {
+    G2L_CHECK(fs::is_regular_file(path), "camera file not found: '", path, "'");
+    std::ifstream f(path, std::ios::binary);
+    G2L_CHECK(f.good(), "cannot open camera file '", path, "'");
+    std::ostringstream ss;
+    ss << f.rdbuf();
+    return parse_camera_file(ss.str(), "camera '" + path + "'", image_id);
 }
 
 }  // namespace g2l::data

@@ -3,6 +3,8 @@
 // LINEMOD-Occluded, the renderer's output, ... See docs/datasets.md for the layout.
 #pragma once
 
+#include <array>
+#include <nlohmann/json_fwd.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -63,5 +65,28 @@ BopDataset open_bop(const std::string& root, const std::string& split,
 /// obj_names.json): a Dataset without frames, for training from renders of the meshes. Same
 /// option semantics and model errors as open_bop (scenes are ignored).
 Dataset open_bop_models(const std::string& root, const BopOptions& options = {});
+
+/// A camera: intrinsics (pixels), depth scale (mm per unit of the depth PNG) and, when the file
+/// gives it, the image size (0 when not).
+struct CameraFile {
+    double fx = 0, fy = 0, cx = 0, cy = 0;
+    double depth_scale = 0;
+    int width = 0, height = 0;
+    std::array<double, 9> cam_K() const { return {fx, 0, cx, 0, fy, cy, 0, 0, 1}; }
+};
+
+/// The one camera reader: a BOP camera.json ({fx, fy, cx, cy, depth_scale, width, height}), one
+/// scene_camera.json entry ({cam_K, depth_scale, ...}), or a whole scene_camera.json (then
+/// image_id picks the entry; -1 = none given). depth_scale is required (a guess would put the
+/// object 10 times too far or too near); focal lengths and depth_scale must be > 0, cam_K
+/// without skew. Errors name the file and the key ("camera 'c.json': '11.cam_K' must be an
+/// array of 9 numbers, got [1,2]").
+CameraFile load_camera_file(const std::string& path, int image_id = -1);
+/// The same from text; `source` names it in errors.
+CameraFile parse_camera_file(const std::string& text, const std::string& source,
+                             int image_id = -1);
+/// One entry already parsed (scene_camera.json's per-image objects); `path` is its key.
+CameraFile parse_camera_entry(const nlohmann::json& entry, const std::string& source,
+                              const std::string& path);
 
 }  // namespace g2l::data

@@ -101,7 +101,10 @@ void validate(const SceneConfig& cfg, const std::string& where = "SceneConfig");
 
 /// Parses a JSON object into a SceneConfig (defaults for absent keys). Unknown keys and wrong
 /// types throw g2l::Error naming `source` and the key path; the result is validated.
-SceneConfig parse_scene_config(const std::string& json_text, const std::string& source);
+/// `key_path` is where the object sits in a larger file ("data.train[1].scene"): errors then
+/// read "<source>: 'data.train[1].scene.z_min' must be a number, got \"near\"".
+SceneConfig parse_scene_config(const std::string& json_text, const std::string& source,
+                               const std::string& key_path = "");
 
 /// Reads and parses a JSON scene config file. Throws g2l::Error naming the file.
 SceneConfig load_scene_config(const std::string& path);

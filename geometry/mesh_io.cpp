@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <vector>
 
@@ -79,6 +80,17 @@ struct PlyReader {
 
     double next(PlyType t) {
         return ascii ? next_ascii() : next_binary(t);
+    }
+
+    /// A list's element count: a whole number in [0, bytes left] (each entry takes at least one
+    /// byte), so a corrupt count is an error naming it, never an overflowing cast or a long loop.
+    int64_t list_count(PlyType t) {
+        const double n = next(t);
+        const double left = static_cast<double>(buf.size() - std::min(pos, buf.size()));
+        G2L_CHECK(std::isfinite(n) && n >= 0 && n <= left && n == std::floor(n), "load_ply: '",
+                  path, "': bad list count ", n, " in ", elem, " ", index, " (", left,
+                  " data bytes left)");
+        return static_cast<int64_t>(n);
     }
 
     double next_ascii() {
@@ -237,24 +249,33 @@ void read_vertices(PlyReader& r, const PlyElement& e, Mesh& m) {
                 val[p] = r.next(prop.type);
                 continue;
             }
-            const double n = r.next(prop.count_type);  // unknown list: read and drop
-            for (int64_t k = 0; k < static_cast<int64_t>(n); ++k) r.next(prop.type);
+            const int64_t n = r.list_count(prop.count_type);  // unknown list: read and drop
+            for (int64_t k = 0; k < n; ++k) r.next(prop.type);
         }
         for (int c = 0; c < 3; ++c) {
             const double x = val[c == 0 ? ix : c == 1 ? iy : iz];
-            G2L_CHECK(std::isfinite(x), "load_ply: '", r.path, "': vertex ", v,
-                      " has a non-finite coordinate (", x, ")");
+            G2L_CHECK(std::isfinite(x) && std::abs(x) <= std::numeric_limits<float>::max(),
+                      "load_ply: '", r.path, "': vertex ", v,
+                      " has a non-finite or out-of-float-range coordinate (", x, ")");
             m.vertices(v, c) = static_cast<float>(x);
         }
         if (normals) {
-            m.normals.row(v) << float(val[inx]), float(val[iny]), float(val[inz]);
+            // a normal is a direction: anything outside float range is garbage, stored as 0
+            auto nf = [](double x) {
+                return std::isfinite(x) && std::abs(x) <= std::numeric_limits<float>::max()
+                           ? static_cast<float>(x)
+                           : 0.0f;
+            };
+            m.normals.row(v) << nf(val[inx]), nf(val[iny]), nf(val[inz]);
         }
         if (colors) {
             const int idx[3] = {ir, ig, ib};
             for (int c = 0; c < 3; ++c) {
                 double x = val[idx[c]];
                 if (is_float_type(e.props[idx[c]].type)) x *= 255.0;
-                m.colors(v, c) = static_cast<uint8_t>(std::clamp(std::lround(x), 0L, 255L));
+                // clamp in double first: a huge or NaN value must not reach an integer cast
+                x = std::isfinite(x) ? std::clamp(x, 0.0, 255.0) : 0.0;
+                m.colors(v, c) = static_cast<uint8_t>(std::lround(x));
             }
         }
     }
@@ -283,7 +304,7 @@ void read_faces(PlyReader& r, const PlyElement& e, Mesh& m) {
                 r.next(prop.type);
                 continue;
             }
-            const int64_t n = static_cast<int64_t>(r.next(prop.count_type));
+            const int64_t n = r.list_count(prop.count_type);
             if (static_cast<int>(p) != list) {
                 for (int64_t k = 0; k < n; ++k) r.next(prop.type);
                 continue;
@@ -294,7 +315,7 @@ void read_faces(PlyReader& r, const PlyElement& e, Mesh& m) {
             for (int64_t k = 0; k < n; ++k) {
                 const double idx = r.next(prop.type);
                 G2L_CHECK(idx >= 0 && idx < double(nv), "load_ply: '", r.path, "': face ", f,
-                          " index ", static_cast<int64_t>(idx), " out of range (", nv,
+                          " index ", idx, " out of range (", nv,
                           " vertices)");
                 poly[k] = static_cast<int32_t>(idx);
             }
@@ -355,7 +376,7 @@ Mesh load_ply(const std::string& path) {
             for (int64_t i = 0; i < e.count; ++i) {
                 r.index = i;
                 for (const PlyProperty& p : e.props) {
-                    const int64_t n = p.is_list ? static_cast<int64_t>(r.next(p.count_type)) : 1;
+                    const int64_t n = p.is_list ? r.list_count(p.count_type) : 1;
                     for (int64_t k = 0; k < n; ++k) r.next(p.type);
                 }
             }
@@ -383,7 +404,9 @@ Mesh load_obj(const std::string& path) {
                 ls >> tok;
                 char* end = nullptr;
                 const double x = std::strtod(tok.c_str(), &end);
-                G2L_CHECK(!tok.empty() && *end == '\0' && std::isfinite(x), "load_obj: '", path,
+                G2L_CHECK(!tok.empty() && *end == '\0' && std::isfinite(x) &&
+                              std::abs(x) <= std::numeric_limits<float>::max(),
+                          "load_obj: '", path,
                           "' line ", line_no, ": bad vertex coordinate '", tok, "'");
                 verts.push_back(static_cast<float>(x));
             }

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "geometry/model_info.h"
 #include "core/json.h"
+#include "core/json_reader.h"
 
 #include <nlohmann/json.hpp>
 
@@ -125,29 +126,30 @@ std::map<int, ModelInfo> load_models_info_json(const std::string& path) {
     std::ostringstream ss;
     ss << f.rdbuf();
     const nlohmann::json j = parse_json_strict(ss.str(), "load_models_info_json: '" + path + "'");
-    G2L_CHECK(j.is_object(), "load_models_info_json: '", path,
-              "': top level must be an object keyed by object id");
+    JsonReader top(j, "load_models_info_json: '" + path + "'");
     std::map<int, ModelInfo> out;
-    for (auto it = j.begin(); it != j.end(); ++it) {
-        const int id = parse_obj_id(it.key(), path, "key");
-        const nlohmann::json& e = it.value();
-        G2L_CHECK(e.is_object(), "load_models_info_json: '", path, "': '", it.key(),
-                  "' must be an object");
+    top.members([&](const std::string& key, const nlohmann::json& e, const std::string&) {
+        const int id = parse_obj_id(key, path, "key");
+        JsonReader r(e, top.source(), key);
         double v[7];
         for (int k = 0; k < 7; ++k) {
-            G2L_CHECK(e.contains(kInfoKeys[k]) && e[kInfoKeys[k]].is_number(),
-                      "load_models_info_json: '", path, "': '", it.key(), ".", kInfoKeys[k],
-                      "' is missing or not a number");
-            v[k] = e[kInfoKeys[k]].get<double>();
+            r.require(kInfoKeys[k]);
+            r.num(kInfoKeys[k], v[k]);
         }
-        G2L_CHECK(v[0] > 0, "load_models_info_json: '", path, "': '", it.key(),
-                  ".diameter' must be > 0, got ", v[0]);
+        G2L_CHECK(v[0] > 0, top.source(), ": '", r.at("diameter"), "' must be > 0, got ", v[0]);
         ModelInfo m = info_from_values(v);
+        // BOP: a list of 4x4 transforms / of {axis, offset}; any entry makes the object
+        // symmetric for the metrics (ADD-S).
         for (const char* sym : {"symmetries_discrete", "symmetries_continuous"}) {
-            if (e.contains(sym) && e[sym].is_array() && !e[sym].empty()) m.symmetric = true;
+            if (const nlohmann::json* x = r.get(sym)) {
+                G2L_CHECK(x->is_array(), top.source(), ": '", r.at(sym),
+                          "' must be an array, got ", x->type_name());
+                if (!x->empty()) m.symmetric = true;
+            }
         }
+        r.finish();
         out[id] = m;
-    }
+    });
     return out;
 }
 

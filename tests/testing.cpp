@@ -38,6 +38,12 @@ void mark_skipped(const std::string& why) {
 int skipped_cases() { return int(skipped_names().size()); }
 
 void skip_without_shared_data(const std::string& what) {
+    // CI sets G2L_REQUIRE_SHARED_DATA when ../shared/data is there: a data test that still cannot
+    // find its data is then a failure, never a green skip.
+    if (const char* req = std::getenv("G2L_REQUIRE_SHARED_DATA"); req && *req && std::string(req) != "0") {
+        FAIL(what << " needs ../shared/data (not found at " << G2L_SHARED_DATA_DIR
+                  << ") and G2L_REQUIRE_SHARED_DATA=" << req << " makes that a failure");
+    }
     mark_skipped(what + " needs ../shared/data (not found at " + G2L_SHARED_DATA_DIR +
                  "; set G2L_SHARED_DATA to point at it)");
 }

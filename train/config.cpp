@@ -3,6 +3,7 @@
 // Writer and the --set machinery are driven by it, so parse and print cannot drift apart.
 #include "train/config.h"
 #include "core/json.h"
+#include "core/json_reader.h"
 
 #include <algorithm>
 #include <cmath>
@@ -34,151 +35,8 @@ std::string list_str(const Choices& v, bool quote) {
     return s;
 }
 
-/// Strict reader of one JSON object: every key read is remembered, finish() rejects the rest.
-class Reader {
-public:
-    Reader(const json& j, std::string path, const std::string& src)
-        : j_(j), path_(std::move(path)), src_(src) {}
-
-    /// Fails unless key k is present.
-    void require(const char* k) const {
-        G2L_CHECK(j_.contains(k), src_, ": '", at(k), "' is required");
-    }
-    void num(const char* k, double& v) {
-        if (const json* x = find(k)) {
-            G2L_CHECK(x->is_number(), src_, ": '", at(k), "' must be a number, got ", x->dump());
-            v = x->get<double>();
-        }
-    }
-    template <class T>
-    void integer(const char* k, T& v) {
-        if (const json* x = find(k)) v = as_int<T>(*x, at(k));
-    }
-    void boolean(const char* k, bool& v) {
-        if (const json* x = find(k)) {
-            G2L_CHECK(x->is_boolean(), src_, ": '", at(k), "' must be true or false, got ",
-                      x->dump());
-            v = x->get<bool>();
-        }
-    }
-    void text(const char* k, std::string& v) {
-        if (const json* x = find(k)) v = as_text(*x, at(k));
-    }
-    void choice(const char* k, std::string& v, const Choices& allowed) {
-        if (const json* x = find(k)) {
-            const std::string s = as_text(*x, at(k));
-            G2L_CHECK(std::find(allowed.begin(), allowed.end(), s) != allowed.end(), src_, ": '",
-                      at(k), "' must be one of ", list_str(allowed, true), ", got ", x->dump());
-            v = s;
-        }
-    }
-    void ints(const char* k, std::vector<int>& v) {
-        if (const json* x = find(k)) {
-            G2L_CHECK(x->is_array(), src_, ": '", at(k), "' must be an array of integers, got ",
-                      x->dump());
-            v.clear();
-            for (size_t i = 0; i < x->size(); ++i)
-                v.push_back(as_int<int>((*x)[i], cat(at(k), "[", i, "]")));
-        }
-    }
-    void texts(const char* k, std::vector<std::string>& v) {
-        if (const json* x = find(k)) {
-            G2L_CHECK(x->is_array(), src_, ": '", at(k), "' must be an array of strings, got ",
-                      x->dump());
-            v.clear();
-            for (size_t i = 0; i < x->size(); ++i)
-                v.push_back(as_text((*x)[i], cat(at(k), "[", i, "]")));
-        }
-    }
-    void num3(const char* k, std::array<double, 3>& v) {
-        if (const json* x = find(k)) {
-            G2L_CHECK(x->is_array() && x->size() == 3, src_, ": '", at(k),
-                      "' must be an array of 3 numbers, got ", x->dump());
-            for (size_t i = 0; i < 3; ++i) {
-                G2L_CHECK((*x)[i].is_number(), src_, ": '", at(k), "[", i,
-                          "]' must be a number, got ", (*x)[i].dump());
-                v[i] = (*x)[i].get<double>();
-            }
-        }
-    }
-    /// A JSON object kept as text (checked later by its own parser).
-    void raw_object(const char* k, std::string& v) {
-        if (const json* x = find(k)) {
-            G2L_CHECK(x->is_object(), src_, ": '", at(k), "' must be a JSON object, got ",
-                      x->dump());
-            v = x->dump();
-        }
-    }
-    template <class F>
-    void object(const char* k, F&& f) {
-        if (const json* x = find(k)) {
-            G2L_CHECK(x->is_object(), src_, ": '", at(k), "' must be a JSON object, got ",
-                      x->dump());
-            Reader sub(*x, at(k), src_);
-            f(sub);
-            sub.finish();
-        }
-    }
-    /// An array of objects; f(Reader&, element) is called for each.
-    template <class T, class F>
-    void list(const char* k, std::vector<T>& v, F&& f) {
-        if (const json* x = find(k)) {
-            G2L_CHECK(x->is_array(), src_, ": '", at(k), "' must be an array of objects, got ",
-                      x->dump());
-            v.assign(x->size(), T{});
-            for (size_t i = 0; i < x->size(); ++i) {
-                const std::string p = cat(at(k), "[", i, "]");
-                G2L_CHECK((*x)[i].is_object(), src_, ": '", p, "' must be a JSON object, got ",
-                          (*x)[i].dump());
-                Reader sub((*x)[i], p, src_);
-                f(sub, v[i]);
-                sub.finish();
-            }
-        }
-    }
-    /// Rejects every key that was not read, listing the known ones.
-    void finish() const {
-        for (auto it = j_.begin(); it != j_.end(); ++it) {
-            if (seen_.count(it.key())) continue;
-            G2L_CHECK(false, src_, ": unknown key '", at(it.key()), "' (known: ",
-                      list_str(Choices(known_.begin(), known_.end()), false), ")");
-        }
-    }
-
-private:
-    const json* find(const char* k) {
-        known_.push_back(k);
-        seen_.insert(k);
-        const auto it = j_.find(k);
-        return it == j_.end() ? nullptr : &*it;
-    }
-    std::string at(const std::string& k) const { return join_key(path_, k); }
-    std::string as_text(const json& x, const std::string& p) const {
-        G2L_CHECK(x.is_string(), src_, ": '", p, "' must be a string, got ", x.dump());
-        return x.get<std::string>();
-    }
-    template <class T>
-    T as_int(const json& x, const std::string& p) const {
-        bool ok = false;
-        if (x.is_number_unsigned()) {
-            ok = x.get<uint64_t>() <= uint64_t(std::numeric_limits<T>::max());
-        } else if (x.is_number_integer()) {
-            const int64_t i = x.get<int64_t>();
-            ok = i < 0 ? std::is_signed<T>::value && i >= int64_t(std::numeric_limits<T>::min())
-                       : uint64_t(i) <= uint64_t(std::numeric_limits<T>::max());
-        }
-        G2L_CHECK(ok, src_, ": '", p, "' must be ",
-                  std::is_signed<T>::value ? "an integer" : "a non-negative integer",
-                  " in the range of ", sizeof(T) * 8, " bits, got ", x.dump());
-        return x.get<T>();
-    }
-
-    const json& j_;
-    std::string path_;
-    const std::string& src_;
-    std::set<std::string> seen_;
-    std::vector<std::string> known_;
-};
+/// The strict reader is the one every JSON file uses (core/json_reader.h).
+using Reader = OrderedJsonReader;
 
 /// Writes every visited field into a JSON object, in visiting order.
 class Writer {
@@ -351,7 +209,7 @@ json parse_json(const std::string& text, const std::string& source) {
 TrainConfig read_config(const json& j, const std::string& source) {
     G2L_CHECK(j.is_object(), source, ": the config must be a JSON object, got ", j.type_name());
     TrainConfig c;
-    Reader r(j, "", source);
+    Reader r(j, source);
     visit_config(r, c);
     r.finish();
     return c;
@@ -474,7 +332,7 @@ void check_sources(const TrainConfig& c, const std::vector<SourceConfig>& list,
         } else {
             G2L_CHECK(!s.models_root.empty(), where, ": '", p, ".models_root' must be set");
             G2L_CHECK(s.frames > 0, where, ": '", p, ".frames' must be > 0, got ", s.frames);
-            const data::SceneConfig sc = source_scene(s, cat(where, ": ", p, ".scene"));
+            const data::SceneConfig sc = source_scene(s, where, p + ".scene");
             const std::vector<int>& allowed = s.objects.empty() ? c.data.object_ids : s.objects;
             for (size_t k = 0; k < sc.target_obj_ids.size(); ++k) {
                 const int id = sc.target_obj_ids[k];
@@ -529,10 +387,11 @@ std::string resolve_config_path(const std::string& value, const std::string& bas
     return out;
 }
 
-data::SceneConfig source_scene(const SourceConfig& src, const std::string& where) {
+data::SceneConfig source_scene(const SourceConfig& src, const std::string& where,
+                               const std::string& key_path) {
     G2L_CHECK(src.type == "synthetic", where, ": not a synthetic source (type \"", src.type,
               "\")");
-    return data::parse_scene_config(src.scene, where);
+    return data::parse_scene_config(src.scene, where, key_path);
 }
 
 void validate(const TrainConfig& c, const std::string& where) {

@@ -176,7 +176,8 @@ void validate(const TrainConfig& cfg, const std::string& where = "TrainConfig");
 
 /// The SceneConfig of a synthetic source (parse_scene_config of src.scene; errors prefixed by
 /// `where`, e.g. "x.json: data.train[1].scene").
-data::SceneConfig source_scene(const SourceConfig& src, const std::string& where);
+data::SceneConfig source_scene(const SourceConfig& src, const std::string& where,
+                               const std::string& key_path = "");
 
 /// Resolves a dataset path written in a config: "${G2L_SHARED}" as a prefix expands to
 /// shared_data_root(base_dir); an absolute path is kept; a relative path that exists relative

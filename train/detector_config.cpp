@@ -12,6 +12,7 @@
 
 #include "core/error.h"
 #include "core/json.h"
+#include "core/json_reader.h"
 #include "train/config.h"
 #include "train/detector_train.h"
 
@@ -24,70 +25,6 @@ namespace {
 
 
 // ---------------------------------------------------------------- config
-struct Keys {
-    const json& obj;
-    std::string where;
-    std::set<std::string> seen;
-    Keys(const json& o, std::string w) : obj(o), where(std::move(w)) {
-        G2L_CHECK(o.is_object(), where, ": expected a JSON object, got ", o.type_name());
-    }
-    const json* get(const std::string& k) {
-        seen.insert(k);
-        auto it = obj.find(k);
-        return it == obj.end() ? nullptr : &*it;
-    }
-    template <class T> void num(const std::string& k, T& v) {
-        if (const json* j = get(k)) {
-            G2L_CHECK(j->is_number(), where, ": '", k, "' must be a number, got ", j->dump());
-            if constexpr (std::is_integral_v<T>) {
-                G2L_CHECK(j->is_number_integer() || (j->is_number_float() &&
-                                                     std::floor(j->get<double>()) == j->get<double>()),
-                          where, ": '", k, "' must be an integer, got ", j->dump());
-                v = T(j->get<double>());
-            } else {
-                v = j->get<T>();
-            }
-        }
-    }
-    void text(const std::string& k, std::string& v) {
-        if (const json* j = get(k)) {
-            G2L_CHECK(j->is_string(), where, ": '", k, "' must be a string, got ", j->dump());
-            v = j->get<std::string>();
-        }
-    }
-    void ints(const std::string& k, std::vector<int>& v) {
-        if (const json* j = get(k)) {
-            G2L_CHECK(j->is_array(), where, ": '", k, "' must be a list of integers, got ",
-                      j->dump());
-            v.clear();
-            for (const json& e : *j) {
-                G2L_CHECK(e.is_number_integer(), where, ": '", k,
-                          "' must be a list of integers, got ", j->dump());
-                v.push_back(e.get<int>());
-            }
-        }
-    }
-    void texts(const std::string& k, std::vector<std::string>& v) {
-        if (const json* j = get(k)) {
-            G2L_CHECK(j->is_array(), where, ": '", k, "' must be a list of strings, got ", j->dump());
-            v.clear();
-            for (const json& e : *j) {
-                G2L_CHECK(e.is_string(), where, ": '", k, "' must be a list of strings, got ",
-                          j->dump());
-                v.push_back(e.get<std::string>());
-            }
-        }
-    }
-    void done() {
-        for (auto it = obj.begin(); it != obj.end(); ++it)
-            if (!seen.count(it.key())) {
-                std::string known;
-                for (const auto& s : seen) known += (known.empty() ? "" : ", ") + s;
-                G2L_CHECK(false, where, ": unknown key '", it.key(), "' (known: ", known, ")");
-            }
-    }
-};
-
 json to_json(const DetectorTrainConfig& c) {
     return json{{"task", "detector"},
                 {"name", c.name},
@@ -186,39 +123,34 @@ DetectorTrainConfig parse_detector_config(const std::string& json_text, const st
                                           const std::string& base_dir) {
     const json root = parse_json_strict(json_text, source);
     DetectorTrainConfig c;
-    Keys k(root, source);
+    JsonReader k(root, source);
     std::string task;
+    k.require("task");
     k.text("task", task);
     G2L_CHECK(task == "detector", source, ": 'task' must be \"detector\" for a detector config, "
                                           "got \"", task, "\"");
     k.text("name", c.name);
-    k.num("seed", c.seed);
-    k.num("threads", c.threads);
+    k.integer("seed", c.seed);
+    k.integer("threads", c.threads);
     k.text("device", c.device);
     k.text("run_dir", c.run_dir);
     // Each section: an object whose keys are read by fill(), unknown keys refused.
-    auto section = [&](const char* name, const std::function<void(Keys&)>& fill) {
-        if (const json* j = k.get(name)) {
-            Keys ks(*j, source + ": " + name);
-            fill(ks);
-            ks.done();
-        }
-    };
-    section("data", [&](Keys& kd) {
+    k.object("data", [&](JsonReader& kd) {
         kd.text("models_root", c.models_root);
         kd.ints("object_ids", c.object_ids);
-        kd.num("downscale", c.downscale);
+        kd.integer("downscale", c.downscale);
         std::string input = nn::to_string(c.input);
         kd.text("input", input);
         c.input = nn::parse_detector_input(input, source + ": data.input");
         kd.num("min_visib_fract", c.min_visib_fract);
         kd.text("distractors_root", c.distractors_root);
         kd.ints("distractor_ids", c.distractor_ids);
-        kd.num("distractor_colors", c.distractor_colors);
-        if (const json* s = kd.get("scene"))
-            c.scene = data::parse_scene_config(s->dump(), source + ": data.scene");
+        kd.integer("distractor_colors", c.distractor_colors);
+        std::string scene;
+        kd.raw_object("scene", scene);
+        if (!scene.empty()) c.scene = data::parse_scene_config(scene, source, "data.scene");
     });
-    section("augment", [&](Keys& ka) {
+    k.object("augment", [&](JsonReader& ka) {
         ka.num("color_jitter", c.color_jitter);
         ka.num("noise_std", c.noise_std);
         ka.num("blur_prob", c.blur_prob);
@@ -229,30 +161,30 @@ DetectorTrainConfig parse_detector_config(const std::string& json_text, const st
         ka.num("photo_prob", c.photo_prob);
         ka.num("object_tone_prob", c.object_tone_prob);
     });
-    section("model", [&](Keys& km) {
-        km.num("width", c.width);
+    k.object("model", [&](JsonReader& km) {
+        km.integer("width", c.width);
         km.text("init", c.init);
     });
-    section("loss", [&](Keys& kl) {
+    k.object("loss", [&](JsonReader& kl) {
         kl.num("heat", c.w_heat);
         kl.num("size", c.w_size);
         kl.num("offset", c.w_offset);
     });
-    section("optim", [&](Keys& ko) { ko.num("lr", c.lr); });
-    section("train", [&](Keys& kt) {
-        kt.num("steps", c.steps);
-        kt.num("batch", c.batch);
-        kt.num("checkpoint_every", c.checkpoint_every);
-        kt.num("log_every", c.log_every);
+    k.object("optim", [&](JsonReader& ko) { ko.num("lr", c.lr); });
+    k.object("train", [&](JsonReader& kt) {
+        kt.integer("steps", c.steps);
+        kt.integer("batch", c.batch);
+        kt.integer("checkpoint_every", c.checkpoint_every);
+        kt.integer("log_every", c.log_every);
         kt.num("time_limit_min", c.time_limit_min);
     });
-    section("val", [&](Keys& kv) {
+    k.object("val", [&](JsonReader& kv) {
         kv.text("root", c.val_root);
         kv.text("split", c.val_split);
-        kv.num("every", c.val_every);
-        kv.num("max_frames", c.val_max_frames);
+        kv.integer("every", c.val_every);
+        kv.integer("max_frames", c.val_max_frames);
     });
-    k.done();
+    k.finish();
     if (!c.models_root.empty()) c.models_root = resolve_config_path(c.models_root, base_dir);
     if (!c.val_root.empty()) c.val_root = resolve_config_path(c.val_root, base_dir);
     if (!c.init.empty()) c.init = resolve_config_path(c.init, base_dir);

@@ -3,6 +3,7 @@
 // validation) and export averaging. Config: detector_config.cpp; targets and loss:
 // detector_loss.cpp; augmentation: detector_augment.cpp; evaluation: eval/detector_eval.cpp.
 #include "train/detector_train.h"
+#include "train/run_dir.h"
 
 #include <algorithm>
 #include <chrono>
@@ -20,6 +21,7 @@
 #include "core/checkpoint.h"
 #include "core/error.h"
 #include "core/json.h"
+#include "core/json_reader.h"
 #include "core/rng.h"
 #include "core/threads.h"
 #include "data/bop.h"
@@ -111,7 +113,7 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
     if (cfg.threads > 0) set_num_threads(cfg.threads);
     const std::string run_dir = opt.resume_dir.empty() ? cfg.run_dir : opt.resume_dir;
     const std::vector<data::Image> photos = load_photos(cfg.backgrounds);  // before the run dir
-    prepare_run_dir(run_dir, !opt.resume_dir.empty(), opt.force);
+    const RunDir run(run_dir, !opt.resume_dir.empty(), opt.force, {"steps.jsonl"});
 
     // ---- models and the scene ----
     data::BopOptions bo;
@@ -183,20 +185,24 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
     int64_t step = 0;
     double seconds_before = 0;
     if (!opt.resume_dir.empty()) {
-        const std::string path = (fs::path(run_dir) / "last.g2l").string();
+        const std::string path = run.path("last.g2l");
         const Checkpoint ck = load_checkpoint(path);
         const json meta = parse_json_strict(ck.meta_json, path + " (metadata)");
-        G2L_CHECK(meta.value("format", "") == kCheckpointFormat, "'", path,
+        G2L_CHECK(meta.is_object() && meta.value("format", "") == kCheckpointFormat, "'", path,
                   "' is not a detector training checkpoint");
-        step = meta.at("step").get<int64_t>();
-        seconds_before = meta.value("seconds", 0.0);
-        std::map<std::string, Tensor> sd;
-        for (const auto& [name, t] : ck.tensors)
-            if (name.rfind("model.", 0) == 0) sd[name.substr(6)] = t;
-        net.load_state_dict(sd, true);
+        JsonReader r(meta, "checkpoint '" + path + "' (metadata)");
+        r.ignore("format");
+        r.require("step");
+        r.integer("step", step);
+        r.num("seconds", seconds_before);
+        r.ignore("config");
+        r.finish();
+        G2L_CHECK(step >= 0 && seconds_before >= 0, r.source(), ": negative 'step' or 'seconds'");
+        net.load_state_dict(model_state_of(ck.tensors), true);
         adam.load_state(ck.tensors, step);
         G2L_CHECK(step < cfg.steps, "--resume '", run_dir, "': the run already finished its ",
                   cfg.steps, " steps");
+        run.trim_log("steps.jsonl", "step", step);  // a killed run logged past its checkpoint
     } else {
         if (!cfg.init.empty()) {  // fine-tuning: the weights of an export, a fresh optimiser
             const nn::LoadedDetector from = nn::load_detector(cfg.init);
@@ -206,22 +212,13 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
                       "config's (data.object_ids, model.width, data.input)");
             net.load_state_dict(from.net->state_dict(), true);
         }
-        std::ofstream c(fs::path(run_dir) / "config.json");
-        c << detector_config_to_json(cfg);
-        G2L_CHECK(c.good(), "cannot write '", (fs::path(run_dir) / "config.json").string(), "'");
-        std::ofstream t(fs::path(run_dir) / "steps.jsonl", std::ios::trunc);
-        G2L_CHECK(t.good(), "cannot write the steps log in '", run_dir, "'");
     }
-    std::ofstream log(fs::path(run_dir) / "steps.jsonl", std::ios::app);
+    run.begin(detector_config_to_json(cfg));
     const auto save = [&](const std::string& name, double seconds_total) {
-        std::vector<std::pair<std::string, Tensor>> ts;
-        for (const auto& [n, t] : net.state_dict()) ts.emplace_back("model." + n, t);
-        for (auto& p : adam.state_tensors()) ts.push_back(p);
         const json meta{{"format", kCheckpointFormat}, {"step", step},
                         {"seconds", seconds_total}, {"config", json::parse(detector_config_to_json(cfg))}};
-        save_checkpoint((fs::path(run_dir) / name).string(), ts, meta.dump());
-        nn::save_detector((fs::path(run_dir) / "detector.g2l").string(), net, cfg.object_ids,
-                      cfg.downscale);
+        save_checkpoint(run.path(name), checkpoint_tensors(net.state_dict(), adam), meta.dump());
+        nn::save_detector(run.path("detector.g2l"), net, cfg.object_ids, cfg.downscale);
     };
 
     // One generator per batch producer; frame index = step * batch + b (resumable exactly).
@@ -339,12 +336,9 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
             std::printf("validation at step %lld on %s/%s:\n%s", (long long)step,
                         cfg.val_root.c_str(), cfg.val_split.c_str(),
                         eval::detector_eval_table(sum.val).c_str());
-        log << json{{"step", step}, {"val_mean_recall", sum.val.mean_recall},
-                    {"val_mean_precision", sum.val.mean_precision},
-                    {"val_mean_peak_rate", sum.val.mean_peak_rate}}
-                   .dump()
-            << "\n";
-        log.flush();
+        run.append("steps.jsonl", {{"step", step}, {"val_mean_recall", sum.val.mean_recall},
+                                   {"val_mean_precision", sum.val.mean_precision},
+                                   {"val_mean_peak_rate", sum.val.mean_peak_rate}});
     };
     bool previewed = !opt.resume_dir.empty();
     while (step < cfg.steps) {
@@ -373,7 +367,7 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
                     data::draw_line(&im, d.x + d.w, d.y + d.h, d.x, d.y + d.h, c, 1);
                     data::draw_line(&im, d.x, d.y + d.h, d.x, d.y, c, 1);
                 }
-                data::save_png((fs::path(run_dir) / cat("preview_", b, ".png")).string(), im);
+                data::save_png(run.path(cat("preview_", b, ".png")), im);
             }
         }
         if (step + 1 < cfg.steps) next = std::async(std::launch::async, make_batch, step + 1);
@@ -418,9 +412,7 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
                            {"offset", lo_acc / acc_n},
                            {"images_per_s", double((step - start_step) * cfg.batch) / std::max(1e-9, secs)},
                            {"minutes", elapsed_min()}};
-            log << rec.dump() << "\n";
-            log.flush();
-            G2L_CHECK(log.good(), "cannot write '", run_dir, "/steps.jsonl' (disk full?)");
+            run.append("steps.jsonl", rec);
             if (opt.progress)
                 std::printf("step %lld/%lld  loss %.4f (heat %.4f size %.4f offset %.4f)  %.1f img/s  %.1f min\n",
                             (long long)step, (long long)cfg.steps, loss_acc / acc_n, lh_acc / acc_n,
@@ -440,6 +432,13 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
                  seconds_before + std::chrono::duration<double>(Clock::now() - t0).count());
         }
         if (cfg.val_every > 0 && step % cfg.val_every == 0 && step < cfg.steps) run_val();
+        if (stop_flag || ((max_hit || time_hit) && step < cfg.steps)) {
+            // the log ends at the step last.g2l holds, with why the run stopped
+            run.append("steps.jsonl", {{"step", step}, {"event", "stopped"},
+                                       {"reason", stop_flag ? "signal"
+                                                  : max_hit ? "max_steps" : "time_limit"},
+                                       {"checkpoint", "last.g2l"}});
+        }
         if (stop_flag) {
             sum.interrupted = true;
             break;

@@ -7,6 +7,8 @@
 
 #include "core/checkpoint.h"
 #include "core/json.h"
+#include "core/json_reader.h"
+#include "train/run_dir.h"
 #include "geometry/model_info.h"
 
 namespace g2l::train {
@@ -91,9 +93,8 @@ void save_training_checkpoint(const std::string& path, const nn::G2LNet& net,
                               const std::map<int, int>& class_of, const KeypointTable& keypoints,
                               const ResumeState& st,
                               const std::map<int, nn::ModelObjectInfo>& objects) {
-    std::vector<std::pair<std::string, Tensor>> tensors;
-    for (const auto& [name, t] : net.state_dict()) tensors.emplace_back("model." + name, t);
-    for (auto& p : adam.state_tensors()) tensors.push_back(p);
+    const std::vector<std::pair<std::string, Tensor>> tensors =
+        checkpoint_tensors(net.state_dict(), adam);
     json meta;
     meta["format"] = "g2l-train";
     meta["model"] = model_json(net.config());
@@ -131,29 +132,29 @@ ResumeState load_training_checkpoint(const std::string& path, nn::G2LNet& net, n
     G2L_CHECK(saved_model == model_json(net.config()), "checkpoint '", path,
               "' was trained with model ", meta.at("model").dump(), " but the config builds ",
               model_json(net.config()).dump());
-    std::map<std::string, Tensor> model;
-    for (const auto& [name, t] : ck.tensors)
-        if (name.rfind("model.", 0) == 0) model.emplace(name.substr(6), t);
     try {
-        net.load_state_dict(model);
+        net.load_state_dict(model_state_of(ck.tensors));
     } catch (const Error& e) {
         G2L_CHECK(false, "checkpoint '", path, "': ", e.what());
     }
-    const json& r = key(meta, "resume", path);
     ResumeState st;
     int64_t adam_step = 0;
-    try {
-        adam_step = r.at("adam_step").get<int64_t>();
-        st.epoch = r.at("epoch").get<int>();
-        st.pos = r.at("pos").get<int64_t>();
-        st.global_step = r.at("global_step").get<int64_t>();
-        st.epoch_batches = r.at("epoch_batches").get<int64_t>();
-        st.epoch_loss = r.at("epoch_loss").get<double>();
-        st.best_val = r.at("best_val").get<double>();
-        st.seconds = r.value("seconds", 0.0);  // absent in checkpoints from before 2026-11-23
-    } catch (const json::exception& e) {
-        G2L_CHECK(false, "checkpoint '", path, "': malformed resume metadata: ", e.what());
-    }
+    JsonReader r(key(meta, "resume", path), "checkpoint '" + path + "' (metadata)", "resume");
+    for (const char* k :
+         {"adam_step", "epoch", "pos", "global_step", "epoch_batches", "epoch_loss", "best_val"})
+        r.require(k);
+    r.integer("adam_step", adam_step);
+    r.integer("epoch", st.epoch);
+    r.integer("pos", st.pos);
+    r.integer("global_step", st.global_step);
+    r.integer("epoch_batches", st.epoch_batches);
+    r.num("epoch_loss", st.epoch_loss);
+    r.num("best_val", st.best_val);
+    r.num("seconds", st.seconds);  // absent in checkpoints from before 2026-11-23
+    r.finish();
+    G2L_CHECK(adam_step >= 0 && st.epoch >= 0 && st.pos >= 0 && st.global_step >= 0 &&
+                  st.epoch_batches >= 0,
+              "checkpoint '", path, "': negative counters in the resume metadata");
     adam.load_state(ck.tensors, adam_step);
     return st;
 }
@@ -254,30 +255,6 @@ int64_t export_average(const std::vector<std::string>& checkpoints, const std::s
     out["trained"]["averaged"] = sources;
     save_checkpoint(out_path, tensors, out.dump());
     return written_size(out_path);
-}
-
-void truncate_jsonl(const std::string& path, const std::string& k, int64_t max_value) {
-    std::ifstream in(path);
-    if (!in) return;
-    std::vector<std::string> keep;
-    std::string line;
-    while (std::getline(in, line)) {
-        if (line.empty()) continue;
-        try {
-            const json j = json::parse(line);
-            if (j.contains(k) && j.at(k).get<int64_t>() > max_value) continue;
-        } catch (const json::exception&) {
-            continue;  // a torn last line from a killed run
-        }
-        keep.push_back(line);
-    }
-    in.close();
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream out(tmp, std::ios::trunc);
-        for (const auto& l : keep) out << l << "\n";
-    }
-    std::filesystem::rename(tmp, path);
 }
 
 }  // namespace g2l::train

@@ -63,8 +63,4 @@ int64_t export_model(const std::string& checkpoint_path, const std::string& out_
 /// network, classes, keypoints, sampling or tensors differ from the first's.
 int64_t export_average(const std::vector<std::string>& checkpoints, const std::string& out_path);
 
-/// Keeps only the lines of a JSONL log whose numeric `key` is <= max_value (after a resume the
-/// log continues from the checkpoint). A missing file is fine.
-void truncate_jsonl(const std::string& path, const std::string& key, int64_t max_value);
-
 }  // namespace g2l::train

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "train/trainer.h"
+#include "train/run_dir.h"
 
 #include <unistd.h>
 
@@ -238,43 +239,13 @@ std::string fmt_time(double s) {
 
 }  // namespace
 
-void prepare_run_dir(const std::string& run_dir, bool resume, bool force) {
-    G2L_CHECK(!run_dir.empty(), "run_dir is empty");
-    if (!resume) {
-        std::error_code ec;
-        for (const char* f : {"config.json", "steps.jsonl", "last.g2l"})
-            G2L_CHECK(force || !fs::exists(fs::path(run_dir) / f, ec), "run directory '",
-                      run_dir, "' already holds a run (", f, "): continue it with --resume ",
-                      run_dir, ", or start over with --force");
-    } else {
-        G2L_CHECK(fs::is_regular_file(fs::path(run_dir) / "last.g2l"), "--resume '", run_dir,
-                  "': no last.g2l there (not a run directory, or the run never saved)");
-        // Leftovers of a checkpoint write that a kill interrupted (<name>.g2l.tmp.<pid>): the
-        // file they were to replace is intact (writes are atomic renames).
-        std::error_code ec;
-        for (const auto& e : fs::directory_iterator(run_dir, ec))
-            if (e.path().filename().string().find(".g2l.tmp.") != std::string::npos)
-                fs::remove(e.path(), ec);
-    }
-    std::error_code ec;
-    fs::create_directories(run_dir, ec);
-    G2L_CHECK(!ec && fs::is_directory(run_dir), "cannot create the run directory '", run_dir,
-              "': ", ec ? ec.message() : std::string("not a directory"));
-    const fs::path probe = fs::path(run_dir) / ".write_test";
-    std::ofstream t(probe);
-    t << "ok";
-    t.close();
-    G2L_CHECK(t.good(), "the run directory '", run_dir, "' is not writable");
-    fs::remove(probe, ec);
-}
-
 TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
     if (cfg.threads > 0) set_num_threads(cfg.threads);
     G2L_CHECK(parse_device(cfg.device).is_cpu(), "device '", cfg.device,
               "': training runs on the CPU in this version (the CUDA backend is not complete)");
     // ---- the run directory first: a bad one is found before any data is read ----
     const std::string run_dir = opt.resume_dir.empty() ? cfg.run_dir : opt.resume_dir;
-    prepare_run_dir(run_dir, !opt.resume_dir.empty(), opt.force);
+    const RunDir run(run_dir, !opt.resume_dir.empty(), opt.force, {"steps.jsonl", "epochs.jsonl"});
     RunData rd = prepare_data(cfg, opt.progress);
     preflight_images(rd, opt.progress);
     G2L_CHECK(!rd.train.empty(), "data.train: no training source configured");
@@ -306,29 +277,17 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
     double epoch_loss = 0, best_val = -1;
     double seconds_before = 0;  // training time of earlier sessions of this run
     if (!opt.resume_dir.empty()) {
-        const std::string path = (fs::path(run_dir) / "last.g2l").string();
-        const ResumeState st = load_training_checkpoint(path, net, adam);
+        const ResumeState st = load_training_checkpoint(run.path("last.g2l"), net, adam);
         epoch = st.epoch; pos = st.pos; global_step = st.global_step;
         epoch_batches = st.epoch_batches; epoch_loss = st.epoch_loss; best_val = st.best_val;
         seconds_before = st.seconds;
         G2L_CHECK(epoch < cfg.train.epochs, "--resume '", run_dir, "': the run already finished its ",
                   cfg.train.epochs, " epochs (", global_step, " steps); to train on, resume with "
                   "--set train.epochs=N (N > ", cfg.train.epochs, ")");
-        truncate_jsonl(fs::path(run_dir) / "steps.jsonl", "step", global_step);
-        truncate_jsonl(fs::path(run_dir) / "epochs.jsonl", "epoch", epoch - 1);
-    } else {
-        std::ofstream c(fs::path(run_dir) / "config.json");
-        c << config_to_json(cfg) << "\n";
-        c.close();
-        G2L_CHECK(c.good(), "cannot write '", (fs::path(run_dir) / "config.json").string(), "'");
-        for (const char* f : {"steps.jsonl", "epochs.jsonl"}) {
-            std::ofstream t(fs::path(run_dir) / f, std::ios::trunc);
-            G2L_CHECK(t.good(), "cannot write '", (fs::path(run_dir) / f).string(), "'");
-        }
+        run.trim_log("steps.jsonl", "step", global_step);
+        run.trim_log("epochs.jsonl", "epoch", epoch - 1);
     }
-    std::ofstream steps_log(fs::path(run_dir) / "steps.jsonl", std::ios::app);
-    std::ofstream epochs_log(fs::path(run_dir) / "epochs.jsonl", std::ios::app);
-    G2L_CHECK(steps_log.good() && epochs_log.good(), "cannot append to the logs in '", run_dir, "'");
+    run.begin(config_to_json(cfg) + "\n");
     const bool tty = opt.progress && isatty(fileno(stdout));
 
     TrainSummary sum;
@@ -345,10 +304,11 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
         const double now = std::chrono::duration<double>(Clock::now() - t_start).count();
         ResumeState st{epoch, pos, global_step, epoch_batches, epoch_loss, best_val,
                        seconds_before + now};
-        save_training_checkpoint((fs::path(run_dir) / name).string(), net, adam, cfg, rd.class_of,
+        save_training_checkpoint(run.path(name), net, adam, cfg, rd.class_of,
                                  rd.keypoints, st, objects);
     };
     bool stop = false;
+    std::string stop_reason;  // "signal", "max_steps" or "time_limit"
     while (epoch < cfg.train.epochs && !stop) {
         adam.set_lr(schedule->lr_at(epoch));
         Sources sources = make_train_sources(rd, cfg, epoch);
@@ -427,9 +387,7 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                           {"t_err_mm", L.t_error_mm}, {"kp_err_mm", L.kp_error_mm},
                           {"sym_frac", L.sym_fraction},
                           {"step_s", dt}};
-                steps_log << j.dump() << "\n";
-                steps_log.flush();
-                G2L_CHECK(steps_log.good(), "cannot write '", run_dir, "/steps.jsonl' (disk full?)");
+                run.append("steps.jsonl", j);
             }
             const double elapsed = std::chrono::duration<double>(Clock::now() - t_start).count();
             const double sps = samples_done / std::max(1e-9, elapsed);
@@ -457,10 +415,14 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                             L.t, L.vec, L.kp, L.res, sps, fmt_time(eta).c_str());
                 std::fflush(stdout);
             }
-            if (opt.max_steps > 0 && global_step >= opt.max_steps) stop = true;
-            if (opt.stop_flag && opt.stop_flag->load()) stop = sum.interrupted = true;
+            if (opt.max_steps > 0 && global_step >= opt.max_steps) stop_reason = "max_steps";
             if (cfg.train.time_limit_min > 0 && run_seconds > cfg.train.time_limit_min * 60)
-                stop = true;
+                stop_reason = "time_limit";
+            if (opt.stop_flag && opt.stop_flag->load()) {
+                stop_reason = "signal";
+                sum.interrupted = true;
+            }
+            stop = !stop_reason.empty();
             if (stop) break;
         }
         if (tty) std::printf("\n");
@@ -500,9 +462,7 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                 ej["val_acc_addsym_10"] = val_auc;
             }
         }
-        epochs_log << ej.dump() << "\n";
-        epochs_log.flush();
-        G2L_CHECK(epochs_log.good(), "cannot write '", run_dir, "/epochs.jsonl' (disk full?)");
+        run.append("epochs.jsonl", ej);
         if (opt.progress)
             std::printf("epoch %d/%d done: loss %.4f%s\n", epoch + 1, cfg.train.epochs,
                     epoch_batches ? epoch_loss / epoch_batches : 0.0,
@@ -525,6 +485,12 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
             break;
         }
     }
+    // A stopped run's log ends at the step its last.g2l holds (the loss records come every
+    // log_every steps): what --resume continues from is in the log, with why it stopped.
+    if (sum.stopped_early)
+        run.append("steps.jsonl", {{"step", global_step}, {"epoch", epoch},
+                                   {"event", "stopped"}, {"reason", stop_reason},
+                                   {"checkpoint", "last.g2l"}});
     const double elapsed = std::chrono::duration<double>(Clock::now() - t_start).count();
     sum.steps = global_step;
     sum.epochs_done = epoch;

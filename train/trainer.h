@@ -40,10 +40,4 @@ struct TrainSummary {
 /// loss (naming the step and the samples' objects).
 TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt);
 
-/// The run-directory rules every trainer follows: a fresh run refuses a directory that holds a
-/// run (config.json, steps.jsonl or last.g2l) unless `force`; a resumed one needs last.g2l and
-/// drops the leftovers of an interrupted atomic write. Creates the directory and checks that it
-/// is writable. Throws g2l::Error naming the directory.
-void prepare_run_dir(const std::string& run_dir, bool resume, bool force);
-
 }  // namespace g2l::train

@@ -11,6 +11,7 @@
 #include "core/autograd.h"
 #include "core/checkpoint.h"
 #include "core/json.h"
+#include "core/json_reader.h"
 #include "core/error.h"
 #include "nn/ops/elementwise.h"
 #include "nn/ops/relu.h"
@@ -351,28 +352,32 @@ LoadedDetector load_detector(const std::string& path) {
               "' is not a detector export (metadata format '",
               meta.is_object() ? meta.value("format", "") : std::string(), "', expected '",
               kDetectorExportFormat, "')");
-    auto need_int = [&](const char* k) {
-        G2L_CHECK(meta.contains(k) && meta[k].is_number_integer(), "'", path, "': metadata key '",
-                  k, "' is missing or not an integer");
-        return meta[k].get<int>();
-    };
+    // Written by our exporter; read strictly like every JSON file (core/json_reader.h).
+    JsonReader r(meta, "detector export '" + path + "' (metadata)");
     LoadedDetector d;
     DetectorConfig dc;
-    dc.num_classes = need_int("num_classes");
-    dc.width = need_int("width");
-    d.downscale = need_int("downscale");
-    if (meta.contains("input")) {
-        G2L_CHECK(meta["input"].is_string(), "'", path, "': metadata key 'input' is not a string");
-        dc.input = parse_detector_input(meta["input"].get<std::string>(), "'" + path + "': input");
-    }
+    for (const char* k : {"num_classes", "width", "downscale", "object_ids"}) r.require(k);
+    r.integer("num_classes", dc.num_classes);
+    r.integer("width", dc.width);
+    r.integer("downscale", d.downscale);
+    std::string input = to_string(dc.input);
+    r.text("input", input);
+    dc.input = parse_detector_input(input, "'" + path + "': input");
     G2L_CHECK(d.downscale == 1 || d.downscale == 2 || d.downscale == 4, "'", path,
               "': downscale must be 1, 2 or 4, got ", d.downscale);
-    G2L_CHECK(meta.contains("object_ids") && meta["object_ids"].is_array(), "'", path,
-              "': metadata key 'object_ids' is missing or not a list");
-    for (const json& e : meta["object_ids"]) {
-        G2L_CHECK(e.is_number_integer(), "'", path, "': object_ids must be integers");
-        d.object_ids.push_back(e.get<int>());
-    }
+    G2L_CHECK(dc.num_classes >= 1 && dc.num_classes <= 10000 && dc.width >= 1 &&
+                  dc.width <= 4096,
+              "'", path, "': num_classes ", dc.num_classes, " / width ", dc.width,
+              " out of range");
+    r.ints("object_ids", d.object_ids);
+    r.ignore("format");  // checked above
+    int version = 1, stride = Detector::kStride;
+    r.integer("version", version);
+    r.integer("stride", stride);
+    G2L_CHECK(version == 1 && stride == Detector::kStride, "'", path, "': detector export version ",
+              version, " with stride ", stride, " (this build reads version 1, stride ",
+              Detector::kStride, ")");
+    r.finish();
     G2L_CHECK(int(d.object_ids.size()) == dc.num_classes, "'", path, "': ", d.object_ids.size(),
               " object ids for ", dc.num_classes, " classes");
     d.net = std::make_unique<Detector>(dc);

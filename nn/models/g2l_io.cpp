@@ -5,6 +5,7 @@
 
 #include "core/checkpoint.h"
 #include "core/json.h"
+#include "core/json_reader.h"
 
 namespace g2l::nn {
 
@@ -17,19 +18,28 @@ json g2l_config_json(const G2LConfig& c) {
             {"rot_unit", c.rot_unit}, {"class_heads", c.class_heads}};
 }
 
-G2LConfig g2l_config_from_json(const json& mj) {
+G2LConfig g2l_config_from_json(const json& mj, const std::string& source) {
+    JsonReader r(mj, source, "model");
     G2LConfig c;
-    c.num_classes = mj.at("num_classes");
-    c.num_keypoints = mj.at("num_keypoints");
-    c.evf = mj.at("evf");
-    c.rre = mj.at("rre");
-    c.width = mj.at("width");
-    c.dropout = mj.at("dropout");
-    c.seed = mj.at("seed");
-    c.rre_dropout = mj.at("rre_dropout");
-    c.out_scale_mm = mj.value("out_scale_mm", 1.0);        // added 2026-11-23
-    c.rot_unit = mj.value("rot_unit", std::string("mm"));  // added 2026-12-01
-    c.class_heads = mj.value("class_heads", false);         // added 2026-12-02
+    for (const char* k : {"num_classes", "num_keypoints", "evf", "rre", "width", "dropout",
+                          "seed", "rre_dropout"})
+        r.require(k);
+    r.integer("num_classes", c.num_classes);
+    r.integer("num_keypoints", c.num_keypoints);
+    r.boolean("evf", c.evf);
+    r.boolean("rre", c.rre);
+    r.num("width", c.width);
+    r.num("dropout", c.dropout);
+    r.integer("seed", c.seed);
+    r.num("rre_dropout", c.rre_dropout);
+    r.num("out_scale_mm", c.out_scale_mm);  // added 2026-11-23 (1 before)
+    r.text("rot_unit", c.rot_unit);         // added 2026-12-01 ("mm" before)
+    r.boolean("class_heads", c.class_heads);  // added 2026-12-02 (false before)
+    r.finish();
+    G2L_CHECK(c.num_classes >= 1 && c.num_classes <= 100000 && c.num_keypoints >= 1 &&
+                  c.num_keypoints <= 1000 && c.width > 0 && c.width <= 64 && c.dropout >= 0 &&
+                  c.dropout < 1 && c.rre_dropout >= 0 && c.rre_dropout < 1 && c.out_scale_mm > 0,
+              source, ": 'model' holds out-of-range values: ", mj.dump());
     return c;
 }
 
@@ -51,28 +61,66 @@ LoadedModel load_model(const std::string& path) {
               "' is not a g2l model checkpoint or export (format '", format, "')");
     LoadedModel m;
     m.format = format;
-    try {
-        m.net = std::make_unique<G2LNet>(g2l_config_from_json(key(meta, "model", path)));
-        for (const auto& p : key(meta, "classes", path)) m.class_of[p.at(0)] = p.at(1);
-        for (const auto& k : key(meta, "keypoints", path)) {
-            std::vector<Eigen::Vector3f> one;
-            for (const auto& p : k) one.emplace_back(p.at(0), p.at(1), p.at(2));
-            m.keypoints.push_back(one);
+    // The one schema reader (core/json_reader.h): a wrong type or value names the key.
+    const std::string src = "checkpoint '" + path + "' (metadata)";
+    JsonReader r(meta, src);
+    m.net = std::make_unique<G2LNet>(g2l_config_from_json(key(meta, "model", path), src));
+    r.ignore("model");
+    for (const char* k : {"classes", "keypoints", "sampling"}) (void)key(meta, k, path);
+    r.members([&](const std::string& k, const json& v, const std::string& at) {
+        if (k == "classes") {  // [[obj_id, class], ...]
+            G2L_CHECK(v.is_array(), src, ": 'classes' must be an array of [obj_id, class]");
+            for (size_t i = 0; i < v.size(); ++i) {
+                const std::string p = at + "[" + std::to_string(i) + "]";
+                G2L_CHECK(v[i].is_array() && v[i].size() == 2, src, ": '", p,
+                          "' must be [obj_id, class], got ", v[i].dump());
+                m.class_of[r.as_int<int>(v[i][0], p + "[0]")] = r.as_int<int>(v[i][1], p + "[1]");
+            }
+        } else if (k == "keypoints") {  // per class, K points [x, y, z] (mm)
+            G2L_CHECK(v.is_array(), src, ": 'keypoints' must be an array of keypoint sets");
+            for (size_t c = 0; c < v.size(); ++c) {
+                const std::string pc = at + "[" + std::to_string(c) + "]";
+                G2L_CHECK(v[c].is_array(), src, ": '", pc, "' must be an array of points");
+                std::vector<Eigen::Vector3f> one;
+                for (size_t i = 0; i < v[c].size(); ++i) {
+                    const std::vector<double> p =
+                        r.as_nums(v[c][i], pc + "[" + std::to_string(i) + "]", 3);
+                    one.emplace_back(float(p[0]), float(p[1]), float(p[2]));
+                }
+                m.keypoints.push_back(one);
+            }
+        } else if (k == "sampling") {
+            JsonReader s(v, src, at);
+            s.text("crop", m.crop);
+            s.num("radius_scale", m.radius_scale);
+            // Added 2026-12-01; older files fed the whole crop (0 = no sampling).
+            m.points = 0;
+            s.integer("points", m.points);
+            m.seg_points = 2000;
+            s.integer("seg_points", m.seg_points);
+            s.require("crop");
+            s.require("radius_scale");
+            s.finish();
+        } else if (k == "objects") {  // added 2026-12-02: [{obj_id, diameter, symmetric}]
+            G2L_CHECK(v.is_array(), src, ": 'objects' must be an array of objects");
+            for (size_t i = 0; i < v.size(); ++i) {
+                JsonReader o(v[i], src, at + "[" + std::to_string(i) + "]");
+                int id = 0;
+                ModelObjectInfo mo;
+                o.require("obj_id");
+                o.require("diameter");
+                o.integer("obj_id", id);
+                o.num("diameter", mo.diameter);
+                o.boolean("symmetric", mo.symmetric);
+                o.finish();
+                m.objects[id] = mo;
+            }
+        } else if (k == "config") {
+            m.config_json = v.dump(2);
         }
-        const json& s = key(meta, "sampling", path);
-        m.crop = s.at("crop");
-        m.radius_scale = s.at("radius_scale");
-        // Added 2026-12-01; older files fed the whole crop (0 = no sampling).
-        m.points = s.value("points", 0);
-        m.seg_points = s.value("seg_points", 2000);
-        if (meta.contains("objects"))  // added 2026-12-02
-            for (const auto& o : meta.at("objects"))
-                m.objects[o.at("obj_id").get<int>()] = {o.at("diameter").get<double>(),
-                                                        o.value("symmetric", false)};
-        m.config_json = meta.contains("config") ? meta.at("config").dump(2) : "{}";
-    } catch (const json::exception& e) {
-        G2L_CHECK(false, "checkpoint '", path, "': malformed metadata: ", e.what());
-    }
+        // format (checked above), resume (the trainer's), and keys a later version adds
+    });
+    if (m.config_json.empty()) m.config_json = "{}";
     G2L_CHECK(!m.class_of.empty(), "checkpoint '", path, "': no classes");
     for (const auto& [id, cls] : m.class_of)
         G2L_CHECK(cls >= 0 && cls < int(m.keypoints.size()) &&

@@ -17,9 +17,11 @@ namespace g2l::nn {
 
 /// The network hyper-parameters as stored in a checkpoint's "model" metadata.
 nlohmann::json g2l_config_json(const G2LConfig& c);
-/// The inverse of g2l_config_json. Keys added after the first checkpoints default to the
-/// behaviour those files were trained with. Throws nlohmann::json::exception.
-G2LConfig g2l_config_from_json(const nlohmann::json& j);
+/// The inverse of g2l_config_json, read strictly (core/json_reader.h): a missing, unknown or
+/// mistyped key throws g2l::Error naming `source` and the key. Keys added after the first
+/// checkpoints default to the behaviour those files were trained with.
+G2LConfig g2l_config_from_json(const nlohmann::json& j,
+                               const std::string& source = "model metadata");
 
 /// j[k] of a model file's metadata; throws g2l::Error naming the file when it is missing.
 const nlohmann::json& metadata_key(const nlohmann::json& j, const char* k, const std::string& path);

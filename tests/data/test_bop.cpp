@@ -232,20 +232,19 @@ TEST_CASE("open_bop errors name the file and key of a broken fixture copy", "[da
         const std::string r = copy_mini("bop_nok");
         edit_json(r, "scene_camera.json", [](json& j) { j["11"].erase("cam_K"); });
         REQUIRE_THROWS_WITH(open_bop(r, "train_real"),
-                            Contains("scene_camera.json") && Contains("missing key \"11\".cam_K"));
+                            Contains("scene_camera.json") && Contains("'11.cam_K' is required"));
     }
     SECTION("cam_t_m2c of the wrong length") {
         const std::string r = copy_mini("bop_len");
         edit_json(r, "scene_gt.json", [](json& j) { j["1"][1]["cam_t_m2c"].erase(2); });
         REQUIRE_THROWS_WITH(open_bop(r, "train_real"), Contains("scene_gt.json") &&
-                                                           Contains("\"1\"[1].cam_t_m2c") &&
-                                                           Contains("must have 3 numbers, got 2"));
+                                                           Contains("'1[1].cam_t_m2c' must be an array of 3 numbers, got ["));
     }
     SECTION("a string inside cam_K") {
         const std::string r = copy_mini("bop_str");
         edit_json(r, "scene_camera.json", [](json& j) { j["1"]["cam_K"][4] = "NaN"; });
         REQUIRE_THROWS_WITH(open_bop(r, "train_real"),
-                            Contains("\"1\".cam_K[4] must be a number") && Contains("\"NaN\""));
+                            Contains("'1.cam_K[4]' must be a number, got \"NaN\""));
     }
     SECTION("image id of scene_gt.json missing from scene_camera.json") {
         const std::string r = copy_mini("bop_noid");
@@ -263,13 +262,13 @@ TEST_CASE("open_bop errors name the file and key of a broken fixture copy", "[da
         const std::string r = copy_mini("bop_rot");
         edit_json(r, "scene_gt.json", [](json& j) { j["11"][0]["cam_R_m2c"][0] = 2.0; });
         REQUIRE_THROWS_WITH(open_bop(r, "train_real"),
-                            Contains("\"11\"[0].cam_R_m2c is not a rotation"));
+                            Contains("'11[0].cam_R_m2c' is not a rotation"));
     }
     SECTION("an instance whose object has no model") {
         const std::string r = copy_mini("bop_obj");
         edit_json(r, "scene_gt.json", [](json& j) { j["1"][0]["obj_id"] = 21; });
         REQUIRE_THROWS_WITH(open_bop(r, "train_real"),
-                            Contains("\"1\"[0].obj_id: object 21 has no model"));
+                            Contains("'1[0].obj_id': object 21 has no model"));
     }
     SECTION("a non-numeric image id") {
         const std::string r = copy_mini("bop_key");
@@ -426,4 +425,65 @@ TEST_CASE("open_bop reads LM-O test (RGB only, coloured models)", "[data][shared
     eval.models_eval = true;
     const BopDataset dse = open_bop(root, "test", eval);
     CHECK(fs::path(dse.model(5).mesh_path).parent_path().filename() == "models_eval");
+}
+
+TEST_CASE("camera files: the one reader of BOP camera.json and scene_camera.json", "[data]") {
+    using g2l::data::CameraFile;
+    using g2l::data::parse_camera_file;
+    // BOP camera.json: fx/fy/cx/cy, depth_scale, the image size
+    const CameraFile a = parse_camera_file(
+        R"({"cx": 312.98, "cy": 241.31, "depth_scale": 0.1, "fx": 1066.778, "fy": 1067.487,
+            "height": 480, "width": 640})", "cam");
+    CHECK(a.fx == 1066.778);
+    CHECK(a.fy == 1067.487);
+    CHECK(a.cx == 312.98);
+    CHECK(a.cy == 241.31);
+    CHECK(a.depth_scale == 0.1);
+    CHECK(a.width == 640);
+    CHECK(a.height == 480);
+    // one scene_camera.json entry (other BOP keys accepted), and a whole file with an image id
+    const std::string entry =
+        R"({"cam_K": [500, 0, 320, 0, 510, 240, 0, 0, 1], "depth_scale": 1, "elev": 10,
+            "cam_R_w2c": [1, 0, 0, 0, 1, 0, 0, 0, 1]})";
+    const CameraFile b = parse_camera_file(entry, "cam");
+    CHECK(b.fx == 500);
+    CHECK(b.fy == 510);
+    CHECK(b.cx == 320);
+    CHECK(b.cy == 240);
+    CHECK(b.depth_scale == 1);
+    CHECK(b.width == 0);  // not given
+    const CameraFile c = parse_camera_file(R"({"3": )" + entry + "}", "cam", 3);
+    CHECK(c.fy == 510);
+    // the fixture's own files, through the file reader
+    const CameraFile d =
+        g2l::data::load_camera_file(mini_root() + "/train_real/000000/scene_camera.json", 1);
+    CHECK(d.depth_scale == 0.1);
+    CHECK(d.fx == Approx(1066.778).epsilon(0).margin(1e-9));
+    CHECK(g2l::data::load_camera_file(mini_root() + "/camera.json").width == 640);
+
+    auto bad = [](const std::string& text, int id, const std::string& what) {
+        INFO(text);
+        REQUIRE_THROWS_WITH(parse_camera_file(text, "camera 'c.json'", id),
+                            Contains("camera 'c.json'") && Contains(what));
+    };
+    bad("[1]", -1, "the top level must be a JSON object");
+    bad(R"({"1": {}})", -1, "give the image id (--image-id)");
+    bad(R"({"1": {}})", 2, "no entry for image 2");
+    bad(R"({"1": {"depth_scale": 1}})", 1, "'1.cam_K' is required");
+    bad(R"({"fx": 500, "fy": 500, "cx": 320, "cy": 240})", -1,
+        "'depth_scale' is required (mm per unit of the depth PNG");
+    bad(R"({"fx": 500, "fy": 500, "cx": 320, "depth_scale": 1})", -1, "'cy' is required");
+    bad(R"({"fx": 0, "fy": 500, "cx": 320, "cy": 240, "depth_scale": 1})", -1,
+        "focal lengths must be > 0, got fx=0");
+    bad(R"({"fx": 500, "fy": 500, "cx": 320, "cy": 240, "depth_scale": -0.1})", -1,
+        "'depth_scale' must be > 0, got -0.1");
+    bad(R"({"fx": 500, "fy": 500, "cx": 320, "cy": "240", "depth_scale": 1})", -1,
+        "'cy' must be a number, got \"240\"");
+    bad(R"({"fx": 500, "fy": 500, "cx": 320, "cy": 240, "depth_scale": 1, "width": 640.5})", -1,
+        "'width' must be an integer");
+    bad(R"({"cam_K": [500, 3, 320, 0, 500, 240, 0, 0, 1], "depth_scale": 1})", -1, "'cam_K'");
+    bad(R"({"cam_K": [500, 0, 320, 0, 500, 240], "depth_scale": 1})", -1,
+        "'cam_K' must be an array of 9 numbers");
+    REQUIRE_THROWS_WITH(g2l::data::load_camera_file("/nonexistent/cam.json"),
+                        Contains("camera file not found: '/nonexistent/cam.json'"));
 }

@@ -259,9 +259,9 @@ TEST_CASE("scene config JSON round-trips and rejects bad keys and values", "[dat
     REQUIRE_THROWS_WITH(parse_scene_config(R"({"zmin": 1})", "s.json"),
                         Contains("s.json: unknown key 'zmin'"));
     REQUIRE_THROWS_WITH(parse_scene_config(R"({"noise": {"sigma_a_mm": "big"}})", "s.json"),
-                        Contains("s.json.noise.sigma_a_mm must be a number, got \"big\""));
+                        Contains("s.json: 'noise.sigma_a_mm' must be a number, got \"big\""));
     REQUIRE_THROWS_WITH(parse_scene_config(R"({"targets_max": 2.5})", "s.json"),
-                        Contains("s.json.targets_max must be an integer, got 2.5"));
+                        Contains("s.json: 'targets_max' must be an integer in the range of 32 bits, got 2.5"));
     REQUIRE_THROWS_WITH(parse_scene_config("{\"z_min\": ", "s.json"),
                         Contains("s.json: invalid JSON"));
     REQUIRE_THROWS_WITH(parse_scene_config(R"({"xy_frac": 0})", "s.json"),

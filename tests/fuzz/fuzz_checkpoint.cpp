@@ -7,6 +7,7 @@
 
 #include "core/checkpoint.h"
 #include "fuzz_util.h"
+#include "nn/models/detector.h"
 #include "nn/models/g2l_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
@@ -17,6 +18,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         (void)ck.tensors.size();
         const g2l::nn::LoadedModel m = g2l::nn::load_model(path);
         (void)m.class_of.size();
+    } catch (const std::exception&) {
+    }
+    try {  // the same bytes as a detector export
+        const g2l::nn::LoadedDetector d = g2l::nn::load_detector(path);
+        (void)d.object_ids.size();
     } catch (const std::exception&) {
     }
     return 0;

@@ -11,6 +11,7 @@
 
 #include "core/checkpoint.h"
 #include "geometry/mesh_io.h"
+#include "nn/models/detector.h"
 #include "nn/models/g2l_io.h"
 
 namespace fs = std::filesystem;
@@ -52,6 +53,15 @@ int main(int argc, char** argv) {
         for (int i = 0; i < 3; ++i)
             put(out / ("text_formats/bop_" + std::to_string(i)),
                 std::string(1, char(4 + i)) + read((mini / "train_real/000000" / scene_files[i]).string()));
+        put(out / "text_formats/detector_config",
+            std::string(1, '\7') + read((src / "configs/ycbv_detector.json").string()));
+        put(out / "text_formats/camera", std::string(1, '\10') + read((mini / "camera.json").string()));
+        put(out / "text_formats/scene_camera",
+            std::string(1, '\10') + read((mini / "train_real/000000/scene_camera.json").string()));
+        put(out / "text_formats/models_info_yml", std::string(1, '\11') +
+            "1: {diameter: 102.1, min_x: -37.9, min_y: -38.7, min_z: -45.9, size_x: 75.9, "
+            "size_y: 77.4, size_z: 91.8}\n5: {diameter: 247.5, min_x: -50.4, min_y: -90.9, "
+            "min_z: -96.9, size_x: 100.8, size_y: 181.8, size_z: 193.7}\n");
         // Meshes: a tetrahedron as binary PLY, ASCII PLY and OBJ.
         g2l::geom::Mesh m;
         m.vertices.resize(4, 3);
@@ -83,6 +93,13 @@ int main(int argc, char** argv) {
         meta["objects"] = {{{"obj_id", 1}, {"diameter", 50.0}, {"symmetric", false}}};
         meta["sampling"] = {{"crop", "sphere"}, {"radius_scale", 1.0}, {"points", 64}, {"seg_points", 32}};
         g2l::save_checkpoint((out / "checkpoint/tiny_model.g2l").string(), tensors, meta.dump());
+        // A tiny detector export (depth input, width 4, two classes).
+        g2l::nn::DetectorConfig dc;
+        dc.num_classes = 2;
+        dc.width = 4;
+        dc.input = g2l::nn::DetectorInput::depth;
+        g2l::nn::save_detector((out / "checkpoint/tiny_detector.g2l").string(),
+                               g2l::nn::Detector(dc), {1, 5}, 2);
         g2l::save_checkpoint((out / "checkpoint/two_tensors.g2l").string(),
                              {{"a", g2l::Tensor::ones({2, 3})}, {"b", g2l::Tensor::zeros({1}, g2l::DType::I32)}},
                              R"({"format": "other"})");

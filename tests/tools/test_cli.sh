@@ -17,8 +17,8 @@ expect() {
     rc=$?
     [ "$rc" -eq "$want" ] || fail "exit $rc, expected $want: $*"
 }
-has() { grep -q -- "$1" "$T/err" || fail "stderr lacks '$1'"; }
-hasnt() { ! grep -q -- "$1" "$T/err" || fail "stderr has '$1'"; }
+has() { grep -qF -- "$1" "$T/err" || fail "stderr lacks '$1'"; }
+hasnt() { ! grep -qF -- "$1" "$T/err" || fail "stderr has '$1'"; }
 
 for tool in apps/g2l_train apps/g2l_eval apps/g2l_bench apps/g2l_rotstudy apps/g2l_render apps/g2l_infer; do
     expect 2 "$B/$tool" --no-such-option
@@ -38,7 +38,7 @@ has "missing.json"
 # Detector configs ("task": "detector"): strict keys, and g2l_eval's detector modes.
 printf '{"task": "detector", "data": {"models_root": "/m", "object_ids": [1], "colour": 1}}' >"$T/det.json"
 expect 1 "$B/apps/g2l_train" --config "$T/det.json"
-has "unknown key 'colour'"
+has "unknown key 'data.colour'"
 expect 2 "$B/apps/g2l_eval" --root r
 has "give --checkpoint"
 expect 2 "$B/apps/g2l_eval" --detector d.g2l
@@ -128,10 +128,10 @@ has "exactly one of --boxes, --box and --detector"
 expect 2 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" --box 8,1,2,3
 has "expected OBJ_ID,X,Y,W,H"
 expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" --box 8,186,132,139,191
-has "for a scene_camera.json give --image-id"
+has "for a scene_camera.json give the image id (--image-id)"
 printf '[{"category_id": 8, "bbox": [1, 2, 3]}]' > "$T/bad.json"
 expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" --image-id 1 --boxes "$T/bad.json"
-has "bad.json' entry 0: 'bbox' must be"
+has "bad.json': '[0].bbox' must be an array of 4 numbers"
 expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$T/none.png" --camera "$F/scene_camera.json" --image-id 1 --boxes "$T/dets.json"
 has "none.png"
 expect 0 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --rgb "$F/rgb/000001.png" \
@@ -169,7 +169,7 @@ has "focal lengths must be > 0"
 # depth's, --box values out of range or not numbers, absurd thread counts, a full disk.
 printf '{"fx": 500, "fy": 500, "cx": 320, "cy": 240}' > "$T/camnoscale.json"
 expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$T/camnoscale.json" --box 8,186,132,139,191
-has "no 'depth_scale'"
+has "'depth_scale' is required"
 printf '{"fx": 500, "fy": 500, "cx": 160, "cy": 120, "depth_scale": 0.1, "width": 320, "height": 240}' > "$T/camsmall.json"
 expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$T/camsmall.json" --box 8,186,132,139,191
 has "is 640 x 480 pixels but the camera"

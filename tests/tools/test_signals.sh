@@ -34,6 +34,13 @@ t_ck=$(ckpt_step "$T/term")
 [ "$t_ck" = "$t_log" ] || fail "SIGTERM: checkpoint at step $t_ck, log at $t_log"
 "$TRAIN" --resume "$T/term" --quiet >"$T/term_resume.log" 2>&1 || fail "resume after SIGTERM failed"
 [ "$(last_step "$T/term")" -eq 72 ] || fail "resumed run ended at step $(last_step "$T/term"), not 72"
+# The log of the stopped run ended at the checkpoint with why it stopped (kept by the resume).
+grep -q "\"event\":\"stopped\".*\"reason\":\"signal\".*\"step\":$t_log}" "$T/term/steps.jsonl" || fail "SIGTERM: no stopped record at step $t_log"
+# --resume --set is written to the run's config.json (the directory says how it trains now).
+"$TRAIN" --resume "$T/term" --set train.epochs=7 --max-steps 74 --quiet >"$T/term_more.log" 2>&1 || fail "resume with --set failed"
+grep -q '"epochs": 7' "$T/term/config.json" || fail "--resume --set train.epochs=7 not in config.json"
+[ "$(last_step "$T/term")" -eq 74 ] || fail "the run resumed with --max-steps 74 ended at step $(last_step "$T/term")"
+grep -q '"reason":"max_steps","step":74}' "$T/term/steps.jsonl" || fail "no max_steps record at step 74"
 
 # 2. SIGKILL at a random moment after the first checkpoint.
 "$TRAIN" --config "$S/configs/demo_cpu.json" --set "run_dir=$T/kill" $SETS --quiet >"$T/kill.log" 2>&1 &

@@ -118,7 +118,7 @@ TEST_CASE("g2l_step: bad symmetric keypoint tables throw naming the class", "[tr
                       Catch::Contains("has 7 keypoints, expected 8"));
 }
 
-TEST_CASE("g2l_step: overfitting one fixed batch drives every loss down", "[train][pipeline]") {
+TEST_CASE("g2l_step: overfitting one fixed batch drives every loss down", "[train][pipeline][slow]") {
     nn::G2LConfig c;
     c.num_classes = 1;
     c.width = 0.25;
@@ -158,7 +158,7 @@ TEST_CASE("g2l_step: overfitting one fixed batch drives every loss down", "[trai
 }
 
 TEST_CASE("g2l_step: the kp_rms unit with centring noise still fits one fixed batch",
-          "[train][pipeline]") {
+          "[train][pipeline][slow]") {
     nn::G2LConfig c;
     c.num_classes = 1;
     c.width = 0.25;

@@ -75,7 +75,7 @@ std::unique_ptr<Setup> make_setup(int id, int n_train, int n_val) {
 }  // namespace
 
 TEST_CASE("rotation blocks learn: keypoint error below 10% of the diameter",
-          "[train][rotation]") {
+          "[train][rotation][slow]") {
     // 035_power_drill (tests/data/ycbv_drill): no geometric symmetry, so depth alone tells its
     // pose. 64 noise-free renders resting on a table, blocks A and B on the GT object points.
     auto s = make_setup(15, 64, 0);

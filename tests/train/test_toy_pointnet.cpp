@@ -6,7 +6,7 @@
 using namespace g2l;
 
 TEST_CASE("toy PointNet: the engine learns spheres vs boxes vs cylinders (> 95% test accuracy)",
-          "[train][toy]") {
+          "[train][toy][slow]") {
     train::ToyConfig cfg;
     const train::ToyResult r = train::train_toy_pointnet(cfg);
     INFO("first loss " << r.first_loss << " final loss " << r.final_loss << " accuracy "

@@ -45,7 +45,10 @@ std::vector<double> logged(const std::string& run_dir, const char* key) {
     std::ifstream f(run_dir + "/steps.jsonl");
     std::vector<double> v;
     std::string line;
-    while (std::getline(f, line)) v.push_back(nlohmann::json::parse(line).at(key).get<double>());
+    while (std::getline(f, line)) {
+        const auto j = nlohmann::json::parse(line);
+        if (!j.contains("event")) v.push_back(j.at(key).get<double>());  // not a "stopped" record
+    }
     return v;
 }
 

@@ -1,0 +1,128 @@
+// SPDX-License-Identifier: MIT
+#include "train/run_dir.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <unistd.h>
+
+#include "core/error.h"
+
+namespace g2l::train {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+/// Writes `text` to `path` through a temporary file and a rename: a kill or a full disk leaves
+/// the old file, never half a new one.
+void write_atomic(const fs::path& path, const std::string& text) {
+    const fs::path tmp = path.string() + ".tmp." + std::to_string(::getpid());
+    {
+        std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+        f << text;
+        f.flush();
+        G2L_CHECK(f.good(), "cannot write '", path.string(), "': ", std::strerror(errno));
+    }
+    std::error_code ec;
+    fs::rename(tmp, path, ec);
+    G2L_CHECK(!ec, "cannot write '", path.string(), "': ", ec.message());
+}
+
+}  // namespace
+
+RunDir::RunDir(std::string dir, bool resume, bool force, std::vector<std::string> logs)
+    : dir_(std::move(dir)), resumed_(resume), logs_(std::move(logs)) {
+    G2L_CHECK(!dir_.empty(), "run_dir is empty");
+    std::error_code ec;
+    if (!resume) {
+        for (const char* f : {"config.json", "steps.jsonl", "last.g2l"})
+            G2L_CHECK(force || !fs::exists(fs::path(dir_) / f, ec), "run directory '", dir_,
+                      "' already holds a run (", f, "): continue it with --resume ", dir_,
+                      ", or start over with --force");
+    } else {
+        G2L_CHECK(fs::is_regular_file(fs::path(dir_) / "last.g2l"), "--resume '", dir_,
+                  "': no last.g2l there (not a run directory, or the run never saved)");
+        for (const auto& e : fs::directory_iterator(dir_, ec)) {
+            const std::string name = e.path().filename().string();
+            if (name.find(".g2l.tmp.") != std::string::npos ||
+                name.find(".json.tmp.") != std::string::npos ||
+                name.find(".jsonl.tmp.") != std::string::npos)
+                fs::remove(e.path(), ec);
+        }
+    }
+    fs::create_directories(dir_, ec);
+    G2L_CHECK(!ec && fs::is_directory(dir_), "cannot create the run directory '", dir_, "': ",
+              ec ? ec.message() : std::string("not a directory"));
+    const fs::path probe = fs::path(dir_) / ".write_test";
+    {
+        std::ofstream t(probe);
+        t << "ok";
+        t.flush();
+        G2L_CHECK(t.good(), "the run directory '", dir_, "' is not writable: ",
+                  std::strerror(errno));
+    }
+    fs::remove(probe, ec);
+}
+
+void RunDir::begin(const std::string& config_json) const {
+    write_atomic(fs::path(dir_) / "config.json", config_json);
+    if (resumed_) return;
+    for (const std::string& l : logs_) {
+        std::ofstream t(path(l), std::ios::trunc);
+        G2L_CHECK(t.good(), "cannot write '", path(l), "': ", std::strerror(errno));
+    }
+}
+
+std::string RunDir::path(const std::string& name) const { return (fs::path(dir_) / name).string(); }
+
+void RunDir::trim_log(const std::string& log, const std::string& key, int64_t max_value) const {
+    std::ifstream in(path(log));
+    if (!in) return;  // a run killed before its first record
+    std::vector<std::string> keep;
+    std::string line;
+    while (std::getline(in, line)) {
+        if (line.empty()) continue;
+        try {
+            const nlohmann::json j = nlohmann::json::parse(line);
+            if (j.is_object() && j.contains(key) && j.at(key).is_number() &&
+                j.at(key).get<double>() > double(max_value))
+                continue;
+        } catch (const nlohmann::json::exception&) {
+            continue;  // a torn last line from a killed run
+        }
+        keep.push_back(line);
+    }
+    in.close();
+    std::string text;
+    for (const auto& l : keep) text += l + "\n";
+    write_atomic(path(log), text);
+}
+
+void RunDir::append(const std::string& log, const nlohmann::json& record) const {
+    G2L_CHECK(std::find(logs_.begin(), logs_.end(), log) != logs_.end(), "RunDir::append: '", log,
+              "' is not a log of this run");
+    std::ofstream f(path(log), std::ios::app);
+    f << record.dump() << "\n";
+    f.flush();
+    G2L_CHECK(f.good(), "cannot write '", path(log), "': ", std::strerror(errno));
+}
+
+std::vector<std::pair<std::string, Tensor>> checkpoint_tensors(
+    const std::map<std::string, Tensor>& model_state, const nn::Adam& adam) {
+    std::vector<std::pair<std::string, Tensor>> out;
+    for (const auto& [name, t] : model_state) out.emplace_back("model." + name, t);
+    for (auto& p : adam.state_tensors()) out.push_back(p);
+    return out;
+}
+
+std::map<std::string, Tensor> model_state_of(const std::map<std::string, Tensor>& tensors) {
+    std::map<std::string, Tensor> sd;
+    for (const auto& [name, t] : tensors)
+        if (name.rfind("model.", 0) == 0) sd.emplace(name.substr(6), t);
+    return sd;
+}
+
+}  // namespace g2l::train

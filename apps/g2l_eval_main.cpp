@@ -156,7 +156,7 @@ int main(int argc, char** argv) {
                  "the detector also sees each image mirrored left-right and averages the two "
                  "class-probability maps (two network passes per frame)");
     app.add_option("--config", config, "evaluate on this config's data.val BOP sources");
-    app.add_option("--set", sets, "config overrides (as g2l_train)");
+    app.add_option("--set", sets, "config overrides (as g2l_train)")->check(g2l::cli::key_value());
     app.add_option("--root", root, "BOP dataset root (instead of --config)");
     app.add_option("--split", split, "BOP split with --root");
     std::string detections_path, bop_csv, instances_path, vis_dir;

@@ -175,7 +175,8 @@ int main(int argc, char** argv) {
     bool bench = false;
     app.add_option("--models", model_args, "mesh folder (obj_NNNNNN.ply) or mesh files")
         ->expected(1, -1);
-    app.add_option("--objects", objects, "target object ids, e.g. 1,2,3 (default: all models)");
+    app.add_option("--objects", objects, "target object ids, e.g. 1,2,3 (default: all models)")
+        ->check(g2l::cli::id_list());
     app.add_option("--out", out_dir, "output dataset root (models/ and <split>/<scene>/)");
     app.add_option("--frames", frames, "number of frames")->check(CLI::Range(int64_t(1), int64_t(1) << 40));
     app.add_option("--seed", seed, "random seed (overrides the config's seed)");

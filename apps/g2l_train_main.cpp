@@ -35,7 +35,8 @@ int main(int argc, char** argv) {
     std::vector<std::string> export_args;
     app.add_option("--config", config, "JSON config (see configs/ and docs/config.md)");
     app.add_option("--set", sets, "override a key, e.g. --set optim.lr=5e-4 --set "
-                                  "data.train.0.frames=100 (repeatable)");
+                                  "data.train.0.frames=100 (repeatable)")
+        ->check(g2l::cli::key_value());
     app.add_option("--resume", resume, "continue the run in this directory exactly where it "
                                         "stopped (uses its config.json unless --config is given)");
     app.add_option("--max-steps", max_steps, "stop with a checkpoint after this many optimizer "

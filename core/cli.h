@@ -60,7 +60,21 @@ inline int parse(CLI::App& app, int argc, char** argv, const char* tool) {
     } catch (const CLI::CallForVersion& e) {
         return app.exit(e);
     } catch (const CLI::ParseError& e) {
-        std::fprintf(stderr, "%s: %s (see %s --help)\n", tool, e.what(), tool);
+        std::string msg = e.what();
+        // CLI11 checks required options before unknown ones: "--dpeth x" would be reported as
+        // "--depth is required". Name the misspelt option instead.
+        if (dynamic_cast<const CLI::RequiredError*>(&e)) {
+            for (int i = 1; i < argc; ++i) {
+                const std::string a = argv[i];
+                if (a.size() < 3 || a.compare(0, 2, "--") != 0) continue;
+                const std::string name = a.substr(0, a.find('='));
+                if (!app.get_option_no_throw(name)) {
+                    msg = "unknown option '" + name + "'";
+                    break;
+                }
+            }
+        }
+        std::fprintf(stderr, "%s: %s (see %s --help)\n", tool, msg.c_str(), tool);
         return kUsageError;
     }
 }
@@ -85,6 +99,37 @@ inline CLI::Validator at_least(double lo) {
             return std::string();
         },
         ">= " + std::to_string(lo));
+}
+
+/// A CLI11 check: comma-separated positive integers ("1,5,8"), each below 10^9.
+inline CLI::Validator id_list() {
+    return CLI::Validator(
+        [](std::string& s) -> std::string {
+            size_t start = 0;
+            do {
+                const size_t end = std::min(s.find(',', start), s.size());
+                const std::string tok = s.substr(start, end - start);
+                if (tok.empty() || tok.size() > 9 ||
+                    tok.find_first_not_of("0123456789") != std::string::npos ||
+                    std::strtol(tok.c_str(), nullptr, 10) < 1)
+                    return "'" + tok + "' is not a positive integer (in '" + s + "')";
+                start = end + 1;
+            } while (start <= s.size());
+            return std::string();
+        },
+        "ID,ID,...");
+}
+
+/// A CLI11 check for --set: "key.path=value" with a non-empty key.
+inline CLI::Validator key_value() {
+    return CLI::Validator(
+        [](std::string& s) -> std::string {
+            const size_t eq = s.find('=');
+            if (eq == std::string::npos || eq == 0)
+                return "'" + s + "': expected key.path=value (e.g. optim.lr=5e-4)";
+            return std::string();
+        },
+        "KEY=VALUE");
 }
 
 /// True when G2L_VERBOSE is set to something other than "" or "0".

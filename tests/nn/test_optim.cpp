@@ -104,10 +104,10 @@ TEST_CASE("adam: L2 weight decay and decoupled (AdamW) weight decay", "[optim]")
         adam.step();
         return values(p)[0];
     };
-    CHECK(one_step(false, 0.1) == Approx(9.9).margin(1e-8).epsilon(0));
-    CHECK(one_step(true, 0.1) == Approx(10.0).margin(1e-8));
-    CHECK(one_step(false, 0.0) == Approx(10.1).margin(1e-8));
-    CHECK(one_step(true, 0.0) == Approx(10.1).margin(1e-8));
+    CHECK(one_step(false, 0.1) == Approx(9.9).epsilon(0).margin(1e-8).epsilon(0));
+    CHECK(one_step(true, 0.1) == Approx(10.0).epsilon(0).margin(1e-8));
+    CHECK(one_step(false, 0.0) == Approx(10.1).epsilon(0).margin(1e-8));
+    CHECK(one_step(true, 0.0) == Approx(10.1).epsilon(0).margin(1e-8));
 
     // Second AdamW step by hand (g = -0.5 again): p = 10.0 * 0.99 = 9.9; m = -0.095, v =
     // 0.0004995, bc1 = 0.19, bc2 = 0.001999 -> m_hat = -0.5, v_hat = 0.25 -> p = 9.9 + 0.1.
@@ -120,7 +120,7 @@ TEST_CASE("adam: L2 weight decay and decoupled (AdamW) weight decay", "[optim]")
         set_grad(p, {-0.5});
         adam.step();
     }
-    CHECK(values(p)[0] == Approx(10.0).margin(1e-7));
+    CHECK(values(p)[0] == Approx(10.0).epsilon(0).margin(1e-7));
 }
 
 TEST_CASE("adam: per-group lr multipliers and set_lr", "[optim]") {
@@ -133,15 +133,15 @@ TEST_CASE("adam: per-group lr multipliers and set_lr", "[optim]") {
     set_grad(a, {3.0, -3.0});
     set_grad(b, {3.0, -3.0});
     adam.step();
-    CHECK(values(a)[0] == Approx(0.99).margin(1e-8));
-    CHECK(values(a)[1] == Approx(2.01).margin(1e-8));
-    CHECK(values(b)[0] == Approx(0.9).margin(1e-8));
-    CHECK(values(b)[1] == Approx(2.1).margin(1e-8));
+    CHECK(values(a)[0] == Approx(0.99).epsilon(0).margin(1e-8));
+    CHECK(values(a)[1] == Approx(2.01).epsilon(0).margin(1e-8));
+    CHECK(values(b)[0] == Approx(0.9).epsilon(0).margin(1e-8));
+    CHECK(values(b)[1] == Approx(2.1).epsilon(0).margin(1e-8));
     adam.set_lr(0.001);
     CHECK(adam.lr() == 0.001);
     adam.step();  // gradients are still set: same direction, new base lr
-    CHECK(values(a)[0] == Approx(0.989).margin(1e-8));
-    CHECK(values(b)[0] == Approx(0.89).margin(1e-8));
+    CHECK(values(a)[0] == Approx(0.989).epsilon(0).margin(1e-8));
+    CHECK(values(b)[0] == Approx(0.89).epsilon(0).margin(1e-8));
     REQUIRE_THROWS_WITH(adam.set_lr(-1.0), Contains("-1"));
     REQUIRE_THROWS_WITH(adam.set_lr(NAN), Contains("nan"));
 }

@@ -26,7 +26,7 @@ namespace {
 // `objects` best boxes, each refined against its mesh. The frame: the first one of
 // ../shared/data/ycbv/train_real/000001 (4 objects) when that is there, else the fixture's
 // first frame (tests/data/ycbv_mini); the what-string says which.
-std::vector<g2l::train::BenchFigure> bench_frame(int reps, const std::string& model,
+std::vector<g2l::tools::BenchFigure> bench_frame(int reps, const std::string& model,
                                                  const std::string& detector, int objects) {
     namespace fs = std::filesystem;
     const std::string shared = g2l::train::shared_data_root("");
@@ -125,28 +125,28 @@ int main(int argc, char** argv) {
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_bench"); rc >= 0) return rc;
     try {
         if (threads > 0) g2l::set_num_threads(threads);
-        auto figs = pose_only ? std::vector<g2l::train::BenchFigure>{}
-                              : g2l::train::bench_engine(reps, quick);
+        auto figs = pose_only ? std::vector<g2l::tools::BenchFigure>{}
+                              : g2l::tools::bench_engine(reps, quick);
         if (pose_reps > 0) {
             // The settings: paper widths, 1500 -> 1000 points ("paper") and
             // 1024 -> 512 ("fast"), batch 1.
             const int pr = quick ? 2 : pose_reps;
             for (const auto& [name, cp, op] : {std::tuple<const char*, int, int>{"pose_ms_paper", 1500, 1000},
                                                {"pose_ms_fast", 1024, 512}}) {
-                const auto pf = g2l::train::bench_pose(name, pr, 1.0, cp, op, true);
+                const auto pf = g2l::tools::bench_pose(name, pr, 1.0, cp, op, true);
                 figs.insert(figs.end(), pf.begin(), pf.end());
-                const auto pg = g2l::train::bench_pose(std::string("graph_") + name, pr, 1.0, cp, op, false);
+                const auto pg = g2l::tools::bench_pose(std::string("graph_") + name, pr, 1.0, cp, op, false);
                 figs.insert(figs.end(), pg.begin(), pg.end());
             }
         }
         if (det_reps > 0) {
             for (bool mirror : {false, true}) {
-                const auto df = g2l::train::bench_detector(quick ? 2 : det_reps, 16, 2, mirror);
+                const auto df = g2l::tools::bench_detector(quick ? 2 : det_reps, 16, 2, mirror);
                 figs.insert(figs.end(), df.begin(), df.end());
             }
         }
         if (refine_reps > 0) {
-            const auto rf = g2l::train::bench_refine(quick ? 2 : refine_reps);
+            const auto rf = g2l::tools::bench_refine(quick ? 2 : refine_reps);
             figs.insert(figs.end(), rf.begin(), rf.end());
         }
         if (frame_reps > 0 && !pose_only) {
@@ -156,11 +156,11 @@ int main(int argc, char** argv) {
         }
         if (train_reps > 0 && !pose_only) {
             // The setting: paper architecture, batch 8, 1500 -> 1000 points.
-            const auto tf = quick ? g2l::train::bench_training(1, width, 2, 300, 200)
-                                  : g2l::train::bench_training(train_reps, width, 8, 1500, 1000);
+            const auto tf = quick ? g2l::tools::bench_training(1, width, 2, 300, 200)
+                                  : g2l::tools::bench_training(train_reps, width, 8, 1500, 1000);
             figs.insert(figs.end(), tf.begin(), tf.end());
         }
-        figs.push_back({"peak_rss_mb", g2l::train::peak_rss_mb(), "MB", "peak resident set size of this run"});
+        figs.push_back({"peak_rss_mb", g2l::tools::peak_rss_mb(), "MB", "peak resident set size of this run"});
         if (json) {
             nlohmann::json j;
             j["threads"] = g2l::num_threads();

@@ -20,12 +20,12 @@ int main(int argc, char** argv) {
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_demo"); rc >= 0) return rc;
     try {
         if (threads > 0) g2l::set_num_threads(threads);
-        g2l::train::ToyConfig cfg;
+        g2l::tools::ToyConfig cfg;
         cfg.steps = steps;
         cfg.seed = seed;
         std::printf("g2l_demo: PointNet classifier on generated point clouds (sphere / box / "
                     "cylinder, %d points)\n", cfg.points);
-        const auto r = g2l::train::train_toy_pointnet(cfg, [&](int step, double loss) {
+        const auto r = g2l::tools::train_toy_pointnet(cfg, [&](int step, double loss) {
             std::printf("  step %4d/%d  loss %.4f\n", step + 1, cfg.steps, loss);
             std::fflush(stdout);
         });

@@ -30,7 +30,7 @@ int main(int argc, char** argv) {
                  "rotation error on held-out renders against samples seen)"};
     std::string models_root, scene_json = "{}", out_json, keypoints_kind = "bbx8";
     std::vector<int> objects{5};
-    train::RotStudyConfig c;
+    tools::RotStudyConfig c;
     int pool = 0, val_n = 100, threads = 0, crop_points = 1024;
     bool noise = false, val_on_pool = false;
     double min_visib = 0, val_min_visib = 0;
@@ -167,7 +167,7 @@ int main(int argc, char** argv) {
                              : "fresh training renders");
         std::fflush(stdout);
         Rng pick(c.seed * 31 + 5);
-        const train::SampleDraw draw = [&](int64_t i, train::PoseSample* out) {
+        const tools::SampleDraw draw = [&](int64_t i, train::PoseSample* out) {
             if (pool > 0) {
                 *out = pooled[pick.below(pooled.size())];
                 return true;
@@ -178,8 +178,8 @@ int main(int argc, char** argv) {
         std::printf("%6s %8s %7s %12s %10s %9s %11s %10s %8s\n", "step", "samples", "sec",
                     "train_kp_mm", "val_kp_mm", "val_kp/d", "rot_med_deg", "rot_mean", "acc10");
         json curve = json::array();
-        train::rot_study(c, int(objects.size()), kps, diam, &sym, draw, val,
-                         [&](const train::RotStudyPoint& p) {
+        tools::rot_study(c, int(objects.size()), kps, diam, &sym, draw, val,
+                         [&](const tools::RotStudyPoint& p) {
                              std::printf("%6d %8lld %7.1f %12.2f %10.2f %9.3f %11.1f %10.1f %8.3f\n",
                                          p.step, (long long)p.samples, p.seconds, p.train_kp_err_mm,
                                          p.val_kp_err_mm, p.val_kp_err_frac,

@@ -28,7 +28,10 @@
 #include "nn/optim.h"
 #include "train/pipeline.h"
 
-namespace g2l::train {
+namespace g2l::tools {
+
+// Tools measure the training code: its names are used as they are.
+using namespace g2l::train;
 
 double median_seconds(const std::function<void()>& fn, int reps, int warmup) {
     for (int i = 0; i < warmup; ++i) fn();
@@ -365,4 +368,4 @@ double peak_rss_mb() {
     return double(u.ru_maxrss) / 1024.0;  // Linux: kilobytes
 }
 
-}  // namespace g2l::train
+}  // namespace g2l::tools

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-namespace g2l::train {
+namespace g2l::tools {
 
 struct BenchFigure {
     std::string name;    ///< JSON key, e.g. "shared_mlp_fwd_gflops"
@@ -59,4 +59,4 @@ std::vector<BenchFigure> bench_refine(int reps);
 /// Peak resident set size of this process so far (MB; getrusage).
 double peak_rss_mb();
 
-}  // namespace g2l::train
+}  // namespace g2l::tools

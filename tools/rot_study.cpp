@@ -11,7 +11,10 @@
 #include "nn/models/g2l_net.h"
 #include "nn/optim.h"
 
-namespace g2l::train {
+namespace g2l::tools {
+
+// Tools measure the training code: its names are used as they are.
+using namespace g2l::train;
 
 namespace {
 
@@ -208,4 +211,4 @@ std::vector<RotStudyPoint> rot_study(const RotStudyConfig& cfg, int num_classes,
     return curve;
 }
 
-}  // namespace g2l::train
+}  // namespace g2l::tools

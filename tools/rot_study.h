@@ -13,7 +13,7 @@
 #include "train/pipeline.h"
 #include "train/sample.h"
 
-namespace g2l::train {
+namespace g2l::tools {
 
 struct RotStudyConfig {
     int steps = 300;           ///< optimiser steps
@@ -33,7 +33,7 @@ struct RotStudyConfig {
     double out_scale_mm = 1.0;        ///< nn::G2LConfig::out_scale_mm (rot_unit "mm" only)
     bool evf = true;           ///< block A on (its vectors feed block B)
     bool rre = false;          ///< block C on
-    LossWeights weights;       ///< vec, kp, res used (seg and t are not)
+    train::LossWeights weights;       ///< vec, kp, res used (seg and t are not)
     double centre_noise_mm = 0;  ///< Gaussian centring error per axis (StepOptions)
     bool symmetric = false;    ///< min-over-symmetries targets (needs `symmetric` tables)
     uint64_t seed = 1;         ///< initialisation, point picks, batch order
@@ -60,7 +60,7 @@ struct RotStudyPoint {
 
 /// Source of training samples: fills *out for draw number i (i = 0, 1, ...) and returns true,
 /// or returns false when draw i is unusable (it is skipped).
-using SampleDraw = std::function<bool(int64_t i, PoseSample* out)>;
+using SampleDraw = std::function<bool(int64_t i, train::PoseSample* out)>;
 
 /// Trains a fresh G2LNet's rotation blocks on the ground-truth object points of the drawn
 /// samples (centred on the GT translation plus centre_noise_mm), evaluating on `val` every
@@ -68,10 +68,10 @@ using SampleDraw = std::function<bool(int64_t i, PoseSample* out)>;
 /// called with each curve point as it is measured. Throws g2l::Error for an empty validation
 /// set, bad sizes, or a draw function that fails 1000 times in a row.
 std::vector<RotStudyPoint> rot_study(const RotStudyConfig& cfg, int num_classes,
-                                     const KeypointTable& keypoints,
+                                     const train::KeypointTable& keypoints,
                                      const std::vector<double>& diameters,
-                                     const SymmetricKeypoints* symmetric, const SampleDraw& draw,
-                                     const std::vector<PoseSample>& val,
+                                     const train::SymmetricKeypoints* symmetric, const SampleDraw& draw,
+                                     const std::vector<train::PoseSample>& val,
                                      const std::function<void(const RotStudyPoint&)>& on_point = {});
 
-}  // namespace g2l::train
+}  // namespace g2l::tools

@@ -13,7 +13,7 @@
 #include "nn/ops/pool_points.h"
 #include "nn/optim.h"
 
-namespace g2l::train {
+namespace g2l::tools {
 
 namespace {
 
@@ -141,4 +141,4 @@ ToyResult train_toy_pointnet(const ToyConfig& cfg, const std::function<void(int,
     return res;
 }
 
-}  // namespace g2l::train
+}  // namespace g2l::tools

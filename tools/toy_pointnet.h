@@ -10,7 +10,7 @@
 
 #include "core/tensor.h"
 
-namespace g2l::train {
+namespace g2l::tools {
 
 struct ToyConfig {
     int num_classes = 3;       ///< 2 = sphere/box, 3 adds cylinders
@@ -38,4 +38,4 @@ Tensor make_toy_cloud(int label, int points, double noise, uint64_t seed);
 ToyResult train_toy_pointnet(const ToyConfig& cfg,
                              const std::function<void(int, double)>& progress = nullptr);
 
-}  // namespace g2l::train
+}  // namespace g2l::tools

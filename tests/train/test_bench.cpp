@@ -12,7 +12,7 @@ using namespace g2l;
 using Catch::Matchers::Contains;
 
 TEST_CASE("bench_refine: four figures, the grid's build and both paths timed", "[train][bench]") {
-    const auto figs = train::bench_refine(1);
+    const auto figs = tools::bench_refine(1);
     REQUIRE(figs.size() == 4);
     CHECK(figs[0].name == "refine_ms");
     CHECK(figs[1].name == "refine_ms_p90");
@@ -25,5 +25,5 @@ TEST_CASE("bench_refine: four figures, the grid's build and both paths timed", "
     }
     CHECK(figs[0].value <= figs[1].value);  // median <= p90
     CHECK_THAT(figs[0].detail, Contains("1000 observed points"));
-    CHECK_THROWS_WITH(train::bench_refine(0), Contains("reps must be >= 1"));
+    CHECK_THROWS_WITH(tools::bench_refine(0), Contains("reps must be >= 1"));
 }

@@ -79,7 +79,7 @@ TEST_CASE("rotation blocks learn: keypoint error below 10% of the diameter",
     // 035_power_drill (tests/data/ycbv_drill): no geometric symmetry, so depth alone tells its
     // pose. 64 noise-free renders resting on a table, blocks A and B on the GT object points.
     auto s = make_setup(15, 64, 0);
-    train::RotStudyConfig c;
+    tools::RotStudyConfig c;
     c.steps = 200;
     c.batch = 32;
     c.lr = 2e-3;
@@ -89,12 +89,12 @@ TEST_CASE("rotation blocks learn: keypoint error below 10% of the diameter",
     c.dropout = 0;
     c.seed = 3;
     size_t next = 0;
-    const train::SampleDraw draw = [&](int64_t, train::PoseSample* out) {
+    const tools::SampleDraw draw = [&](int64_t, train::PoseSample* out) {
         *out = s->pool[next++ % s->pool.size()];
         return true;
     };
     // Error on the rendered views it trained on (eval mode, deterministic point picks).
-    const auto fit = train::rot_study(c, 1, s->kps, s->diam, &s->sym, draw, s->pool);
+    const auto fit = tools::rot_study(c, 1, s->kps, s->diam, &s->sym, draw, s->pool);
     REQUIRE(fit.size() == 1);
     INFO("keypoint error " << fit.back().val_kp_err_mm << " mm = " << fit.back().val_kp_err_frac
                            << " of the diameter, median rotation error "
@@ -108,33 +108,33 @@ TEST_CASE("rotation blocks learn: keypoint error below 10% of the diameter",
     c.rot_unit = "mm";
     c.steps = c.eval_every = 100;
     next = 0;
-    const auto flat = train::rot_study(c, 1, s->kps, s->diam, &s->sym, draw, s->pool);
+    const auto flat = tools::rot_study(c, 1, s->kps, s->diam, &s->sym, draw, s->pool);
     INFO("mm unit: " << flat.back().val_kp_err_frac << " of the diameter");
     CHECK(flat.back().val_kp_err_frac > 0.45);
 }
 
 TEST_CASE("rot_study: bad settings throw", "[train][rotation]") {
-    train::RotStudyConfig c;
+    tools::RotStudyConfig c;
     const train::KeypointTable kps(1, std::vector<Eigen::Vector3f>(8, Eigen::Vector3f(1, 2, 3)));
-    const train::SampleDraw never = [](int64_t, train::PoseSample*) { return false; };
-    CHECK_THROWS_WITH(train::rot_study(c, 1, kps, {100.0}, nullptr, never, {}),
+    const tools::SampleDraw never = [](int64_t, train::PoseSample*) { return false; };
+    CHECK_THROWS_WITH(tools::rot_study(c, 1, kps, {100.0}, nullptr, never, {}),
                       Catch::Contains("empty validation set"));
     std::vector<train::PoseSample> val(1);
-    CHECK_THROWS_WITH(train::rot_study(c, 1, kps, {}, nullptr, never, val),
+    CHECK_THROWS_WITH(tools::rot_study(c, 1, kps, {}, nullptr, never, val),
                       Catch::Contains("diameters"));
     c.symmetric = true;
-    CHECK_THROWS_WITH(train::rot_study(c, 1, kps, {100.0}, nullptr, never, val),
+    CHECK_THROWS_WITH(tools::rot_study(c, 1, kps, {100.0}, nullptr, never, val),
                       Catch::Contains("symmetry tables"));
     const train::SymmetricKeypoints one_table(1, kps);
     c.lr_decay_factor = 0;
-    CHECK_THROWS_WITH(train::rot_study(c, 1, kps, {100.0}, &one_table, never, val),
+    CHECK_THROWS_WITH(tools::rot_study(c, 1, kps, {100.0}, &one_table, never, val),
                       Catch::Contains("lr_decay_factor in (0, 1], got 0 and 0"));
     c.lr_decay_factor = 0.5;
     c.symmetric = false;
     c.steps = 0;
-    CHECK_THROWS_WITH(train::rot_study(c, 1, kps, {100.0}, nullptr, never, val),
+    CHECK_THROWS_WITH(tools::rot_study(c, 1, kps, {100.0}, nullptr, never, val),
                       Catch::Contains("must be > 0"));
     c.steps = 1;
-    CHECK_THROWS_WITH(train::rot_study(c, 1, kps, {100.0}, nullptr, never, val),
+    CHECK_THROWS_WITH(tools::rot_study(c, 1, kps, {100.0}, nullptr, never, val),
                       Catch::Contains("unusable draws"));
 }

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -24,6 +25,24 @@ namespace {
 
 using json = nlohmann::json;
 
+/// The default model, `rel` (models/ycbv_sim2real.g2l), looked up where a user's g2l_infer can
+/// find it: the working folder, then beside the program — the source tree of a build
+/// (build/apps/g2l_infer → models/) and an installed prefix (bin/ → share/g2l/models/).
+/// Returns `rel` unchanged when none has it (the estimator then names the missing file).
+std::string default_model(const std::string& rel) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (fs::is_regular_file(rel, ec)) return rel;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    if (ec) return rel;
+    const fs::path name = fs::path(rel).filename();
+    for (const fs::path& c : {exe.parent_path().parent_path().parent_path() / rel,
+                              exe.parent_path().parent_path() / "share/g2l/models" / name}) {
+        if (fs::is_regular_file(c, ec)) return c.string();
+    }
+    return rel;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -35,7 +54,9 @@ int main(int argc, char** argv) {
     std::vector<std::string> box_args;
     int scene_id = -1, image_id = -1, threads = 0;
     double min_score = 0;
-    app.add_option("--model,--checkpoint", model, "inference export or training checkpoint")
+    app.add_option("--model,--checkpoint", model,
+                   "inference export or training checkpoint (default: the shipped YCB-Video "
+                   "model, found next to this program whatever the working folder)")
         ->capture_default_str();
     app.add_option("--depth", depth_path, "16-bit depth PNG (BOP: depth/<id>.png)")->required();
     app.add_option("--rgb", rgb_path, "RGB image (the detector's input with --detector; drawn on "
@@ -153,7 +174,9 @@ int main(int argc, char** argv) {
                                          : g2l::Refinement::none;
         opt.meshes = meshes;
         if (!detector_path.empty() && app.count("--min-score")) opt.min_detection_score = min_score;
+        if (app.count("--model") == 0) model = default_model(model);
         g2l::PoseEstimator est(model, opt);
+        const bool refining = !opt.meshes.empty() && opt.refine != g2l::Refinement::none;
         if (!detector_path.empty() && rgb_path.empty() && est.detector_input() != "depth") {
             std::fprintf(stderr, "g2l_infer: --detector '%s' is an %s detector: it needs the "
                                  "--rgb image\n", detector_path.c_str(), est.detector_input().c_str());
@@ -187,7 +210,16 @@ int main(int argc, char** argv) {
                                       {"rotation", p.timings.rotation_ms},
                                       {"refine", p.timings.refine_ms},
                                       {"total", p.timings.total_ms}}}};
+            // Always say whether the pose went through the refinement, and why not when it was
+            // asked for and did not (no mesh of this object in --meshes).
+            o["refined"] = p.refined;
             if (p.refined) o["fit_mm"] = p.fit_mm;
+            if (p.ok() && !p.refined && refining) {
+                char mesh_name[32];
+                std::snprintf(mesh_name, sizeof mesh_name, "obj_%06d.ply", p.obj_id);
+                o["note"] = g2l::cat("not refined: no ", mesh_name, " in --meshes '",
+                                     opt.meshes, "'");
+            }
             if (p.ok()) {
                 o["R"] = p.R;
                 o["t"] = p.t;

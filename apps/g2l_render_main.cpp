@@ -213,6 +213,16 @@ int main(int argc, char** argv) {
         if (app.count("--objects") > 0) cfg.target_obj_ids = parse_ids(objects);
         std::vector<data::SceneModel> sm;
         for (const LoadedModel& m : models) sm.push_back({m.obj_id, m.mesh.get()});
+        for (const int id : cfg.target_obj_ids) {  // name the option, not the scene generator
+            bool known = false;
+            std::string ids;
+            for (const auto& m : sm) {
+                known |= m.obj_id == id;
+                ids += (ids.empty() ? "" : ", ") + std::to_string(m.obj_id);
+            }
+            G2L_CHECK(known, app.count("--objects") ? "--objects" : "the scene config's target_obj_ids",
+                      ": object ", id, " is not among the meshes of --models (", ids, ")");
+        }
         data::SceneGenerator gen(cfg, sm);
 
         const fs::path root(out_dir);

@@ -2,6 +2,8 @@
 #include "data/dataset.h"
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <cctype>
 #include <filesystem>
 #include <fstream>
@@ -124,9 +126,13 @@ void save_png(const std::string& path, const Image& image) {
     try {
         ok = cv::imwrite(path, bgr, {cv::IMWRITE_PNG_COMPRESSION, 6});
     } catch (const cv::Exception& e) {
-        G2L_CHECK(false, "save_png: cannot write '", path, "': ", e.what());
+        // OpenCV's text is several lines of its own internals: keep its first line
+        std::string why = e.err.empty() ? std::string(e.what()) : e.err;
+        why = why.substr(0, why.find('\n'));
+        G2L_CHECK(false, "cannot write the image '", path, "': ", why);
     }
-    G2L_CHECK(ok, "save_png: cannot write '", path, "'");
+    G2L_CHECK(ok, "cannot write the image '", path, "' (", std::strerror(errno ? errno : EIO),
+              ")");
 }
 
 void save_depth_png(const std::string& path, const uint16_t* depth, int w, int h) {

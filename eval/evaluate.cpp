@@ -405,23 +405,32 @@ std::string report_markdown(const EvalReport& r) {
              : r.oracle == "t" ? std::string("ground-truth translation")
                                : std::string("ground-truth object points and translation")) +
             " replace the network's.\n\n";
-    if (r.refine != infer::Refine::none)
-        s += std::string("Depth refinement (") + infer::to_string(r.refine) + "): " +
-             (r.refine == infer::Refine::icp ? std::string("ICP of the object points onto the mesh")
-                                : std::string("ICP onto the mesh from the pose and its near-symmetric "
-                                              "turns, the best depth fit wins")) +
-             ".\n\n";
+    // The table always says which stages its poses went through.
+    s += std::string("Depth refinement (") + infer::to_string(r.refine) + "): " +
+         (r.refine == infer::Refine::none ? std::string("none, the networks' poses as they are")
+          : r.refine == infer::Refine::icp
+              ? std::string("ICP of the object points onto the mesh")
+              : std::string("ICP onto the mesh from the pose and its near-symmetric turns, the "
+                            "best depth fit wins")) +
+         ".\n\n";
     s += "| object | n | miss | ADD(-S) acc 0.1d (%) | ADD-S acc 0.1d (%) | ADD-sym acc 0.1d (%) | "
                     "rot err sym median (deg) | ADD-S AUC | ADD AUC | rot err (deg) | trans err (mm) | trans err median (mm) | seg IoU |\n"
                     "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     char line[512];
     auto row = [&](const ObjectScores& o, const std::string& name) {
-        std::snprintf(line, sizeof line,
-                      "| %s | %d | %d | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.2f | %.1f | %.1f | ",
+        std::snprintf(line, sizeof line, "| %s | %d | %d | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | ",
                       name.c_str(), o.count, o.misses, o.acc_add_s_10, o.acc_adds_all_10,
-                      o.acc_addsym_10, o.rot_err_sym_deg_median, o.auc_adds, o.auc_add,
-                      o.mean_rot_err_deg, o.mean_trans_err_mm, o.median_trans_err_mm);
+                      o.acc_addsym_10, o.rot_err_sym_deg_median, o.auc_adds, o.auc_add);
         s += line;
+        // The mean errors are over found poses: an object whose every instance was missed
+        // has none ("-", not a 0.00 that reads as perfect).
+        if (o.count > o.misses) {
+            std::snprintf(line, sizeof line, "%.2f | %.1f | %.1f | ", o.mean_rot_err_deg,
+                          o.mean_trans_err_mm, o.median_trans_err_mm);
+            s += line;
+        } else {
+            s += "- | - | - | ";
+        }
         if (o.seg_iou >= 0) {
             std::snprintf(line, sizeof line, "%.3f |\n", o.seg_iou);
             s += line;

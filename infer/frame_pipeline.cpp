@@ -144,10 +144,10 @@ void FramePipeline::crop(const float* depth, const geom::Intrinsics& K,
             p.status = PoseStatus::box_outside_image;
             continue;
         }
-        const geom::Points pts = geom::depth_to_points(depth, W, H, K, p.box);
         if (crop_kind_ == CropKind::frustum) {
-            p.crop = pts;  // every point of the box: no centre needed
-        } else {
+            // every point of the box: no centre needed
+            p.crop = geom::depth_to_points(depth, W, H, K, p.box);
+        } else {  // the centre first: a box without depth there is not back-projected at all
             Eigen::Vector3d c;
             const bool have = r.centre ? (c = *r.centre, true)
                               : r.peak_x >= 0 && r.peak_y >= 0
@@ -161,7 +161,9 @@ void FramePipeline::crop(const float* depth, const geom::Intrinsics& K,
             const auto d = model_.diameter.find(r.obj_id);
             G2L_CHECK(d != model_.diameter.end() && d->second > 0, "FramePipeline: no diameter "
                       "for object ", r.obj_id, " (the sphere crop needs it)");
-            p.crop = geom::crop_points(to_string(crop_kind_), pts, c, model_.radius_scale * d->second);
+            p.crop = geom::crop_points(to_string(crop_kind_),
+                                       geom::depth_to_points(depth, W, H, K, p.box), c,
+                                       model_.radius_scale * d->second);
         }
         p.num_crop_points = int(p.crop.rows());
         p.ms_crop = ms_since(t0);
@@ -173,12 +175,15 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
     std::vector<PoseOutcome>& outs = *io;
     G2L_CHECK(!oracles || oracles->size() == outs.size(), "FramePipeline::estimate: ",
               oracles ? oracles->size() : 0, " oracles for ", outs.size(), " outcomes");
-    // 1. The networks for every cropped request of the frame at once.
-    queries_.clear();
-    query_of_.clear();
+    // One box at a time, one engine call each: a box's pose then never depends on which other
+    // boxes the frame has (a batched call packs them into the same GEMMs, whose tiling follows
+    // the total point count and changes the last bits, and the refinement's choice among its
+    // starts can amplify those). Batching saved ~10% of a 4-object frame; reproducible poses
+    // are worth more.
     for (size_t i = 0; i < outs.size(); ++i) {
         PoseOutcome& p = outs[i];
         if (p.status != PoseStatus::ok) continue;
+        // 1. The networks.
         nn::PoseQuery q;
         q.crop = &p.crop;
         q.class_index = model_.class_of.at(p.obj_id);
@@ -188,22 +193,9 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
             q.object_mask = (*oracles)[i].object_mask;
             q.translation = (*oracles)[i].translation;
         }
-        queries_.push_back(q);
-        query_of_.push_back(i);
-    }
-    // One engine call per box: a box's pose then never depends on which other boxes the
-    // frame has (a batched call packs them into the same GEMMs, whose tiling follows the total
-    // point count and changes the last bits, and the refinement's choice among its starts can
-    // amplify those). Batching saved ~10% of a 4-object frame; reproducible poses are worth more.
-    results_.resize(queries_.size());
-    for (size_t q = 0; q < queries_.size(); ++q) {
-        single_.assign(1, queries_[q]);
+        single_.assign(1, q);
         engine_->estimate(single_, opt_.object_points, opt_.crop_points, &single_out_);
-        results_[q] = std::move(single_out_[0]);
-    }
-    for (size_t q = 0; q < queries_.size(); ++q) {
-        nn::PoseEstimate& e = results_[q];
-        PoseOutcome& p = outs[query_of_[q]];
+        const nn::PoseEstimate& e = single_out_[0];
         p.ms_seg = e.ms_seg;
         p.ms_t = e.ms_t;
         p.ms_rot = e.ms_rot;

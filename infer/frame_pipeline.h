@@ -156,10 +156,7 @@ private:
     std::unique_ptr<nn::PoseEngine> engine_;
     std::map<int, PreparedMesh> meshes_;
     // Reused between frames.
-    std::vector<nn::PoseQuery> queries_;
-    std::vector<size_t> query_of_;  // outcome index of each query
-    std::vector<nn::PoseEstimate> results_;
-    std::vector<nn::PoseQuery> single_;
+    std::vector<nn::PoseQuery> single_;  // the engine's batch of one (reused)
     std::vector<nn::PoseEstimate> single_out_;
 };
 

@@ -99,8 +99,9 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
         (void)cls;
         G2L_CHECK(m.model.objects.count(id), "PoseEstimator: '", model_path,
                   "' does not store the diameter of object ", id,
-                  " (a file written before 2026-12-02): give a BOP models_info.json in "
-                  "EstimatorOptions::models_info, or re-export it with g2l_train --export");
+                  " (a file written before 2026-12-02): give the dataset's BOP models_info.json "
+                  "(g2l_infer --models-info; in the library EstimatorOptions::models_info), or "
+                  "re-export it with g2l_train --export");
     }
     infer::PipelineOptions po;
     po.crop_points = options.crop_points;

@@ -399,13 +399,15 @@ TEST_CASE("PoseEstimator: depth refinement against the meshes, and its option er
             for (int k = 0; k < 3; ++k) R(r, k) = after[b].R[size_t(r * 3 + k)];
         CHECK((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < 1e-6);
         CHECK(R.determinant() == Approx(1.0).margin(1e-6));
-        // ICP on real depth: the translation lands near the truth (the networks' is 6.6 and
-        // 9.3 mm off on these two; refined 8.5 and 1.6 mm).
+        // ICP on real depth: the translation lands near the truth. Measured 2026-12-04 (printed
+        // below): the networks 6.6 and 9.3 mm off on these two, refined 8.5 and 5.3 mm; pinned
+        // at the measured value + 2 mm, the fit at its measured 1.25 / 0.97 mm + 0.5.
         const Eigen::Vector3d t0(before[b].t[0], before[b].t[1], before[b].t[2]);
         const Eigen::Vector3d t1(after[b].t[0], after[b].t[1], after[b].t[2]);
         std::printf("refine: object %d translation error %.1f -> %.1f mm, fit %.2f mm\n",
                     inst.obj_id, (t0 - inst.pose.t).norm(), (t1 - inst.pose.t).norm(), after[b].fit_mm);
-        CHECK((t1 - inst.pose.t).norm() < 12.0);
+        CHECK((t1 - inst.pose.t).norm() < (inst.obj_id == 8 ? 8.5 : 5.3) + 2.0);
+        CHECK(after[b].fit_mm < (inst.obj_id == 8 ? 1.25 : 0.97) + 0.5);
         err_before += (t0 - inst.pose.t).norm();
         err_after += (t1 - inst.pose.t).norm();
     }
@@ -450,13 +452,24 @@ TEST_CASE("PoseEstimator: depth refinement against the meshes, and its option er
 
 TEST_CASE("PoseEstimator: the shipped depth detector and pose model on the real fixture frames, no GT box",
           "[infer][detector]") {
-    // What ./g2l.sh demo runs, pinned (measured 2026-12-03: every box IoU >= 0.5, translation
-    // errors 0.5 mm (gelatin box) and 6.9 mm (mug) median, gelatin rotation 0.5 deg).
+    // What ./g2l.sh demo runs, pinned per instance near the values measured 2026-12-04 (this
+    // test prints them): box IoU, translation and rotation error of the refined pose against
+    // the fixture's ground truth. Margins: IoU -0.05, translation +2 mm, rotation +2 deg.
+    struct Pin {
+        size_t frame;
+        int obj_id;
+        double iou, t_mm, rot_deg;
+    };
+    // The mug's 26 deg is its near-symmetry: the handle is not in view and the refinement keeps
+    // the networks' turn about the axis (ADD-S is what the mug is judged by).
+    const Pin pins[] = {{0, 8, 0.810, 0.40, 0.61}, {0, 14, 0.869, 5.36, 26.32},
+                        {1, 8, 0.879, 0.48, 0.46}, {1, 14, 0.868, 3.09, 26.14}};
     g2l::EstimatorOptions o;
     o.detector = std::string(G2L_SOURCE_DIR) + "/models/ycbv_detector.g2l";
     o.meshes = g2l::testing::fixture_dir() + "/ycbv_mini/models";
     g2l::PoseEstimator est(kModel, o);
     REQUIRE(est.detector_input() == "depth");
+    int checked = 0;
     for (size_t index : {size_t(0), size_t(1)}) {
         const Fixture f = load_frame(index);
         const g2l::FrameView v = view_of(f);  // depth only: the detector needs no RGB
@@ -471,18 +484,26 @@ TEST_CASE("PoseEstimator: the shipped depth detector and pose model on the real 
             const auto& gt = inst.bbox_visib;
             const double iou = g2l::geom::box_iou(boxes[k].x, boxes[k].y, boxes[k].w, boxes[k].h,
                                                   gt.x, gt.y, gt.w, gt.h);
-            CHECK(iou >= 0.5);
             REQUIRE(poses[k].ok());
             CHECK(poses[k].refined);
             const Eigen::Vector3d t(poses[k].t[0], poses[k].t[1], poses[k].t[2]);
-            CHECK((t - inst.pose.t).norm() < 15.0);
-            if (inst.obj_id == 8) {  // the gelatin box: no near-symmetry to hide behind
-                Eigen::Matrix3d R;
-                for (int r = 0; r < 3; ++r)
-                    for (int c = 0; c < 3; ++c) R(r, c) = poses[k].R[size_t(r * 3 + c)];
-                const double cosang = std::clamp(((R.transpose() * inst.pose.R).trace() - 1) / 2, -1.0, 1.0);
-                CHECK(std::acos(cosang) * 180 / M_PI < 3.0);
+            Eigen::Matrix3d R;
+            for (int r = 0; r < 3; ++r)
+                for (int c = 0; c < 3; ++c) R(r, c) = poses[k].R[size_t(r * 3 + c)];
+            const double cosang =
+                std::clamp(((R.transpose() * inst.pose.R).trace() - 1) / 2, -1.0, 1.0);
+            const double t_err = (t - inst.pose.t).norm(), rot = std::acos(cosang) * 180 / M_PI;
+            std::printf("shipped pipeline: frame %zu object %d: IoU %.3f, t error %.2f mm, "
+                        "rotation error %.2f deg\n",
+                        index, inst.obj_id, iou, t_err, rot);
+            for (const Pin& p : pins) {
+                if (p.frame != index || p.obj_id != inst.obj_id) continue;
+                CHECK(iou >= p.iou - 0.05);
+                CHECK(t_err <= p.t_mm + 2.0);
+                CHECK(rot <= p.rot_deg + 2.0);
+                ++checked;
             }
         }
     }
+    CHECK(checked == 4);  // every pinned instance was found and checked
 }

@@ -69,6 +69,16 @@ TEST_CASE("aggregate: per-object and average figures of a hand-made case", "[tra
     CHECK(avg.auc_adds == Approx((a.auc_adds + b.auc_adds) / 2));
     CHECK(avg.mean_rot_err_deg == Approx((2.0 + 180.0 + 90.0) / 3));  // mean over found instances
     CHECK(avg.mean_trans_err_mm == Approx((4.0 + 6.0 + 10.0) / 3));
+
+    // The table names the refinement (here none), and an object whose every instance was
+    // missed shows no mean errors ("-"), never a 0.00 that reads as perfect.
+    InstanceResult miss2;
+    miss2.obj_id = 2;
+    const EvalReport rm = aggregate({res[0], miss2, miss2}, meta);
+    const std::string md = report_markdown(rm);
+    CHECK_THAT(md, Catch::Contains("Depth refinement (none): none, the networks' poses"));
+    CHECK_THAT(md, Catch::Contains("| 2 | 0.0 | 0.0 | 0.0 | 180.0 | 0.0 | 0.0 | - | - | - |"));
+    CHECK_THAT(md, Catch::Contains("| 1 | 0 | 100.0 |"));  // object 1: one instance, found
 }
 
 TEST_CASE("aggregate: instances of unknown objects or bad diameters throw", "[train][eval]") {

@@ -171,10 +171,16 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
     REQUIRE(r.instances == 4);
     REQUIRE(r.objects.size() == 2);
     for (const auto& s : r.objects) {
+        std::printf("tiny model: object %d auc_adds %.3f auc_add %.3f rot_err_sym_median %.3f\n",
+                    s.obj_id, s.auc_adds, s.auc_add, s.rot_err_sym_deg_median);
         REQUIRE(s.count == 2);
-        REQUIRE(s.auc_adds >= 0);
-        REQUIRE(s.auc_adds <= 100);
         REQUIRE(s.auc_add <= s.auc_adds + 1e-9);  // ADD >= ADD-S per instance
+        // Pinned near the values measured 2026-12-04 (printed above): ADD-S AUC 93.5 (object
+        // 8) and 90.6 (object 14) +- 5; the 8-step model's rotation is near random (103 and
+        // 146 deg), pinned +- 25 deg (another CPU's rounding may move it a little).
+        CHECK(s.auc_adds == Approx(s.obj_id == 8 ? 93.5 : 90.6).epsilon(0).margin(5.0));
+        CHECK(s.rot_err_sym_deg_median ==
+              Approx(s.obj_id == 8 ? 103.1 : 145.6).epsilon(0).margin(25.0));
     }
     const std::string md = eval::report_markdown(r);
     REQUIRE_THAT(md, Catch::Contains("009_gelatin_box") && Catch::Contains("**average**"));
@@ -189,8 +195,6 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
     for (const auto& s : r.objects) {
         CHECK(s.acc_addsym_10 >= s.acc_add_s_10 - 1e-9 * double(!s.symmetric));
         CHECK(s.acc_adds_all_10 >= s.acc_addsym_10 - 1e-9);  // ADD-S <= ADD-sym per instance
-        CHECK(s.rot_err_sym_deg_median >= 0);
-        CHECK(s.rot_err_sym_deg_median <= 180);
         CHECK(s.num_symmetries >= 1);
     }
     CHECK_THAT(eval::report_json(r), Catch::Contains("acc_addsym_10") &&

@@ -248,10 +248,16 @@ void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads
             chosen.push_back(pool[size_t(rng.below(pool.size()))]);
         }
     }
+    // Distractors never repeat a target of the frame: an unannotated copy of an annotated
+    // object would teach "this object is background" (LINEMOD-like scenes list every object as
+    // both). With disjoint lists (every config before 2026-12-04) the draws are unchanged.
     int n_distract = int(rng.randint(cfg_.distractors_min, cfg_.distractors_max + 1));
-    if (distractors_.empty()) n_distract = 0;
+    std::vector<int> dpool;
+    for (const int id : distractors_)
+        if (std::find(chosen.begin(), chosen.end(), id) == chosen.end()) dpool.push_back(id);
+    if (dpool.empty()) n_distract = 0;
     for (int k = 0; k < n_distract; ++k) {
-        chosen.push_back(distractors_[size_t(rng.below(distractors_.size()))]);
+        chosen.push_back(dpool[size_t(rng.below(dpool.size()))]);
     }
 
     // Poses: centre projects into the central xy_frac of the image at a random depth, and

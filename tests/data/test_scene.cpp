@@ -99,6 +99,39 @@ TEST_CASE("scene ground truth is consistent with the masks, occluded objects los
     CHECK(occluded >= 2);
 }
 
+TEST_CASE("scene distractors never repeat a target of the frame", "[data][scene]") {
+    // LINEMOD-like scenes list every object as target and as distractor: an unannotated copy
+    // of the frame's annotated object would teach "this object is background".
+    Models m;
+    SceneConfig cfg = small_config();
+    cfg.target_obj_ids = {1};
+    cfg.targets_min = cfg.targets_max = 1;
+    cfg.distractor_obj_ids = {1};  // only the target itself: no distractor can be drawn
+    cfg.distractors_min = cfg.distractors_max = 2;
+    cfg.support_plane_prob = 0;
+    cfg.noise.enabled = false;
+    RenderedFrame f;
+    for (const char* mode : {"random", "resting"}) {
+        cfg.pose_mode = mode;
+        SceneGenerator gen(cfg, m.list());
+        for (int64_t idx = 0; idx < 3; ++idx) {
+            gen.render_frame(idx, f);
+            REQUIRE(f.instances.size() == 1);
+            CHECK(std::count(f.distractor_mask.begin(), f.distractor_mask.end(), 255) == 0);
+        }
+        // With another object in the list, the distractors are that one.
+        cfg.distractor_obj_ids = {1, 2};
+        SceneGenerator gen2(cfg, m.list());
+        int64_t px = 0;
+        for (int64_t idx = 0; idx < 3; ++idx) {
+            gen2.render_frame(idx, f);
+            px += std::count(f.distractor_mask.begin(), f.distractor_mask.end(), 255);
+        }
+        CHECK(px > 0);
+        cfg.distractor_obj_ids = {1};
+    }
+}
+
 TEST_CASE("scene distractors: their pixels are in distractor_mask, never in the instance mask",
           "[data][scene]") {
     Models m;

@@ -12,7 +12,7 @@ set -euo pipefail
 cd "$(dirname "$0")"
 
 PKGS="cmake ninja-build g++ pkg-config libeigen3-dev libopencv-dev nlohmann-json3-dev catch2
-      libnanoflann-dev libcli11-dev libomp-dev"
+      libnanoflann-dev libcli11-dev libomp-dev libopenmpi-dev openmpi-bin"
 BUILD_DIR=${G2L_BUILD_DIR:-build}
 JOBS=${G2L_JOBS:-$(nproc)}
 

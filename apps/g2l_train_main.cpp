@@ -9,6 +9,7 @@
 
 #include "train/config.h"
 #include "train/detector_train.h"
+#include "train/distributed.h"
 #include "train/model_io.h"
 #include "train/trainer.h"
 
@@ -20,9 +21,16 @@ extern "C" void on_signal(int sig) {
     g_signal = sig;
     g_stop.store(true);
 }
+// MPI (train/distributed.h) from the first line of main to its return; a no-op without mpirun.
+struct DistSession {
+    DistSession(int* argc, char*** argv) { g2l::train::dist::init(argc, argv); }
+    ~DistSession() { g2l::train::dist::finalize(); }
+};
 }  // namespace
 
 int main(int argc, char** argv) {
+    const DistSession dist_session(&argc, &argv);
+    namespace dist = g2l::train::dist;
     CLI::App app{"g2l_train: trains G2L-Net (segmentation, translation and rotation networks) "
                  "from a JSON config. Writes the run directory: config.json, steps.jsonl, "
                  "epochs.jsonl, last.g2l, best.g2l, epoch_<k>.g2l. A config with \"task\": "
@@ -89,12 +97,25 @@ int main(int argc, char** argv) {
         return 2;
     }
     // A run stopped by SIGINT / SIGTERM: it wrote its checkpoint; say how to continue.
+    // In a data-parallel job every rank stops after the same step (the stop flags travel with
+    // the gradients); rank 0, which wrote the checkpoint, says so.
     auto interrupted = [](int64_t steps, const std::string& run_dir) {
-        std::fprintf(stderr, "g2l_train: %s after step %lld: checkpoint written, continue with "
-                             "--resume %s\n",
-                     g_signal == SIGINT ? "interrupted (SIGINT)" : "terminated (SIGTERM)",
-                     (long long)steps, run_dir.c_str());
-        return 128 + int(g_signal);
+        const int sig = g_signal != 0 ? int(g_signal) : SIGTERM;
+        if (dist::is_root())
+            std::fprintf(stderr, "g2l_train: %s after step %lld: checkpoint written, continue "
+                                 "with --resume %s\n",
+                         g_signal == 0      ? "stopped (another rank of the job got a signal)"
+                         : sig == SIGINT    ? "interrupted (SIGINT)"
+                                            : "terminated (SIGTERM)",
+                         (long long)steps, run_dir.c_str());
+        return 128 + sig;
+    };
+    // Under mpirun a failing rank would leave the others waiting in a collective: it ends the
+    // whole job (MPI_Abort) after naming what failed. Checkpoints are written atomically, so
+    // the last one stays intact.
+    auto failed = [&](const std::exception& e) {
+        const int rc = g2l::cli::report("g2l_train", e, verbose);
+        return dist::abort_job(std::string("failed: ") + e.what(), rc);
     };
     try {
         const std::string cfg_path = config.empty() ? resume + "/config.json" : config;
@@ -110,7 +131,7 @@ int main(int argc, char** argv) {
             const auto dcfg = g2l::train::load_detector_config(cfg_path, sets);
             const auto s = g2l::train::run_detector_training(dcfg, opt);
             if (s.interrupted) return interrupted(s.steps, s.run_dir);
-            if (!quiet)
+            if (!quiet && dist::is_root())
                 std::printf("g2l_train: detector %s after %lld steps, %.1f images/s; export %s/"
                             "detector.g2l%s\n",
                             s.stopped_early ? "stopped" : "finished", (long long)s.steps,
@@ -123,7 +144,7 @@ int main(int argc, char** argv) {
         g2l::train::TrainConfig cfg = g2l::train::load_config(cfg_path, sets);
         const auto s = g2l::train::run_training(cfg, opt);
         if (s.interrupted) return interrupted(s.steps, s.run_dir);
-        if (!quiet)
+        if (!quiet && dist::is_root())
             std::printf("g2l_train: %s after %lld steps (%d epochs), %.2f samples/s; best val ADD-sym acc@0.1d "
                     "%s; run dir %s\n",
                     s.stopped_early ? "stopped" : "finished", (long long)s.steps, s.epochs_done,
@@ -131,6 +152,6 @@ int main(int argc, char** argv) {
                     s.run_dir.c_str());
         return 0;
     } catch (const std::exception& e) {
-        return g2l::cli::report("g2l_train", e, verbose);
+        return failed(e);
     }
 }

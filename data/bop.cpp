@@ -27,14 +27,7 @@ namespace {
 
 // ---- strict JSON access: every failure names the file and the key path ---------------------
 
-json read_json(const fs::path& path) {
-    G2L_CHECK(fs::is_regular_file(path), "BOP file not found: '", path.string(), "'");
-    std::ifstream f(path, std::ios::binary);
-    G2L_CHECK(f.good(), "cannot open '", path.string(), "'");
-    std::ostringstream ss;
-    ss << f.rdbuf();
-    return parse_json_strict(ss.str(), "malformed JSON in '" + path.string() + "'");
-}
+json read_json(const fs::path& path) { return parse_json_file(path.string()); }
 
 // BOP files are read with the one schema reader (core/json_reader.h), by path: errors read
 // "<file>: '3[1].cam_t_m2c' must be an array of 3 numbers, got [1,2]". Keys we do not use

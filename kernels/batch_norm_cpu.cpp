@@ -79,12 +79,53 @@ void bn_backward_cpu(const T* x, const T* dy, const T* mean, const T* invstd, co
     }
 }
 
+template <class T>
+void bn_moment_cpu(const T* x, int64_t B, int64_t C, int64_t S, const double* shift, bool square,
+                   double* out) {
+#pragma omp parallel for schedule(static) if (B * C * S > 16384)
+    for (int64_t c = 0; c < C; ++c) {
+        const double m = shift ? shift[c] : 0.0;
+        double s = 0;
+        for (int64_t b = 0; b < B; ++b) {
+            const T* row = x + (b * C + c) * S;
+            for (int64_t i = 0; i < S; ++i) {
+                const double d = double(row[i]) - m;
+                s += square ? d * d : d;
+            }
+        }
+        out[c] = s;
+    }
+}
+
+template <class T>
+void bn_backward_dx_cpu(const T* x, const T* dy, const T* mean, const T* invstd, const T* gamma,
+                        int64_t B, int64_t C, int64_t S, const double* sum_dy,
+                        const double* sum_dy_xhat, double M, T* dx) {
+#pragma omp parallel for schedule(static) if (B * C * S > 16384)
+    for (int64_t c = 0; c < C; ++c) {
+        const T m = mean[c], is = invstd[c];
+        const T k = (gamma ? gamma[c] : T(1)) * is;
+        const T a = T(sum_dy[c] / M), bq = T(sum_dy_xhat[c] / M);
+        for (int64_t b = 0; b < B; ++b) {
+            const T* xr = x + (b * C + c) * S;
+            const T* dr = dy + (b * C + c) * S;
+            T* out = dx + (b * C + c) * S;
+            for (int64_t i = 0; i < S; ++i) out[i] = k * (dr[i] - a - (xr[i] - m) * is * bq);
+        }
+    }
+}
+
 #define G2L_BN_INST(T)                                                                        \
     template void bn_stats_cpu<T>(const T*, int64_t, int64_t, int64_t, T*, T*);               \
     template void bn_apply_cpu<T>(const T*, const T*, const T*, const T*, const T*, int64_t,   \
                                   int64_t, int64_t, T*);                                      \
     template void bn_backward_cpu<T>(const T*, const T*, const T*, const T*, const T*, int64_t, \
-                                     int64_t, int64_t, bool, T*, T*, T*);
+                                     int64_t, int64_t, bool, T*, T*, T*);             \
+    template void bn_moment_cpu<T>(const T*, int64_t, int64_t, int64_t, const double*, bool,   \
+                                   double*);                                                  \
+    template void bn_backward_dx_cpu<T>(const T*, const T*, const T*, const T*, const T*,      \
+                                        int64_t, int64_t, int64_t, const double*,             \
+                                        const double*, double, T*);
 G2L_BN_INST(float)
 G2L_BN_INST(double)
 #undef G2L_BN_INST

@@ -50,9 +50,16 @@ DetTargets make_detector_targets(const std::vector<DetBox>& boxes, int K, int w,
     return t;
 }
 
+double detector_centres(const std::vector<DetTargets>& targets) {
+    double n = 0;
+    for (const DetTargets& t : targets)
+        for (const float g : t.heat) n += g >= 1.f;
+    return n;
+}
+
 Tensor detector_loss(const nn::DetOut& out, const std::vector<DetTargets>& targets,
                      double w_heat, double w_size, double w_offset, double* heat_loss,
-                     double* size_loss, double* offset_loss) {
+                     double* size_loss, double* offset_loss, double centres) {
     G2L_CHECK(out.heat.defined() && out.heat.dim() == 4, "detector_loss: bad heat output");
     const int64_t B = out.heat.size(0), K = out.heat.size(1), H = out.heat.size(2),
                   W = out.heat.size(3);
@@ -84,7 +91,7 @@ Tensor detector_loss(const nn::DetOut& out, const std::vector<DetTargets>& targe
         std::copy(t.offset.begin(), t.offset.end(), ot.data<float>() + size_t(b) * 2 * plane);
         std::copy(t.mask.begin(), t.mask.end(), m.data<float>() + size_t(b) * plane);
     }
-    const double norm = 1.0 / std::max(1.0, npos);
+    const double norm = 1.0 / std::max(1.0, centres >= 0 ? centres : npos);
     // Penalty-reduced focal loss (CenterNet): -(1-p)^2 log p at centres,
     // -(1-g)^4 p^2 log(1-p) elsewhere; p clamped away from 0 and 1.
     const Tensor p = nn::clamp(nn::sigmoid(out.heat), 1e-4, 1 - 1e-4);

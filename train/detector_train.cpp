@@ -30,7 +30,9 @@
 #include "eval/detector_eval.h"
 #include "nn/optim.h"
 #include "train/config.h"
+#include "nn/data_parallel.h"
 #include "train/detector_augment.h"
+#include "train/distributed.h"
 #include "train/trainer.h"
 
 namespace g2l::train {
@@ -113,7 +115,13 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
     if (cfg.threads > 0) set_num_threads(cfg.threads);
     const std::string run_dir = opt.resume_dir.empty() ? cfg.run_dir : opt.resume_dir;
     const std::vector<data::Image> photos = load_photos(cfg.backgrounds);  // before the run dir
-    const RunDir run(run_dir, !opt.resume_dir.empty(), opt.force, {"steps.jsonl"});
+    // Data-parallel (train/distributed.h): this process renders and trains on images
+    // [img_lo, img_hi) of every global batch; rank 0 alone writes the run directory and prints.
+    const bool root = dist::is_root();
+    const bool progress = opt.progress && root;
+    const std::pair<int64_t, int64_t> shard = dist::shard(cfg.batch);
+    const int64_t img_lo = shard.first, img_hi = shard.second, local = img_hi - img_lo;
+    const RunDir run(run_dir, !opt.resume_dir.empty(), opt.force, {"steps.jsonl"}, root);
 
     // ---- models and the scene ----
     data::BopOptions bo;
@@ -215,21 +223,24 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
     }
     run.begin(detector_config_to_json(cfg));
     const auto save = [&](const std::string& name, double seconds_total) {
+        if (!root) return;  // the checkpoint holds the global state: one writer
         const json meta{{"format", kCheckpointFormat}, {"step", step},
                         {"seconds", seconds_total}, {"config", json::parse(detector_config_to_json(cfg))}};
         save_checkpoint(run.path(name), checkpoint_tensors(net.state_dict(), adam), meta.dump());
         nn::save_detector(run.path("detector.g2l"), net, cfg.object_ids, cfg.downscale);
     };
 
-    // One generator per batch producer; frame index = step * batch + b (resumable exactly).
+    // One generator per batch producer; frame index = step * batch + b (resumable exactly),
+    // image b's draws seeded by (step, b): the global batch is the same for any number of
+    // processes, this one making images [img_lo, img_hi).
     data::SceneGenerator gen(scene, sm);
     const int hw = W / nn::Detector::kStride, hh = H / nn::Detector::kStride;
     auto make_batch = [&](int64_t s) {
-        std::vector<DetSample> batch(size_t(cfg.batch));
+        std::vector<DetSample> batch(static_cast<size_t>(local));
         data::RenderedFrame fr;
-        for (int b = 0; b < cfg.batch; ++b) {
+        for (int64_t b = img_lo; b < img_hi; ++b) {
             gen.render_frame(s * cfg.batch + b, fr, 1);
-            DetSample& d = batch[size_t(b)];
+            DetSample& d = batch[size_t(b - img_lo)];
             d.rgb = fr.rgb;
             if (nn::uses_depth(cfg.input)) d.depth = fr.depth;
             Rng rng(mix_seed(mix_seed(cfg.seed, uint64_t(s)), uint64_t(b) + 17));
@@ -323,6 +334,10 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
     };
     auto run_val = [&]() {
         if (!val) return;
+        if (!root) {  // rank 0 validates alone; the others sleep until it is done
+            dist::barrier();
+            return;
+        }
         nn::LoadedDetector ld;
         ld.downscale = cfg.downscale;
         ld.object_ids = cfg.object_ids;  // the input kind travels in dc
@@ -332,20 +347,21 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
         ld.net->eval();
         sum.val = eval::evaluate_detector(ld, *val, 0.1, 0.3f, cfg.val_max_frames, false);
         sum.evaluated = true;
-        if (opt.progress)
+        if (progress)
             std::printf("validation at step %lld on %s/%s:\n%s", (long long)step,
                         cfg.val_root.c_str(), cfg.val_split.c_str(),
                         eval::detector_eval_table(sum.val).c_str());
         run.append("steps.jsonl", {{"step", step}, {"val_mean_recall", sum.val.mean_recall},
                                    {"val_mean_precision", sum.val.mean_precision},
                                    {"val_mean_peak_rate", sum.val.mean_peak_rate}});
+        dist::barrier();
     };
-    bool previewed = !opt.resume_dir.empty();
+    bool previewed = !opt.resume_dir.empty() || !root;
     while (step < cfg.steps) {
         std::vector<DetSample> batch = next.get();
         if (!previewed) {  // what the detector trains on, with its target boxes
             previewed = true;
-            for (int b = 0; b < std::min(cfg.batch, 4); ++b) {
+            for (int b = 0; b < int(std::min<int64_t>(local, 4)); ++b) {
                 data::Image im;
                 im.w = W, im.h = H, im.channels = 3;
                 im.data = batch[size_t(b)].rgb;
@@ -372,9 +388,9 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
         }
         if (step + 1 < cfg.steps) next = std::async(std::launch::async, make_batch, step + 1);
         const int C = nn::detector_input_channels(cfg.input);
-        Tensor x = Tensor::empty({cfg.batch, C, H, W});
+        Tensor x = Tensor::empty({local, C, H, W});
         std::vector<DetTargets> targets;
-        for (int b = 0; b < cfg.batch; ++b) {
+        for (int b = 0; b < int(local); ++b) {
             const std::vector<uint8_t>& rgb = batch[size_t(b)].rgb;
             float* px = x.data<float>() + size_t(b) * size_t(C) * size_t(H) * size_t(W);
             if (nn::uses_rgb(cfg.input))
@@ -394,26 +410,43 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
         net.train();
         adam.zero_grad();
         double lh = 0, ls = 0, lo = 0;
+        // The loss is normalised by the global batch's centres (one small all-reduce), so
+        // the processes' losses and gradients add up to the one-process ones; BatchNorm sees
+        // the global batch through the hook.
+        double centres = detector_centres(targets);
+        if (dist::size() > 1) dist::allreduce_sum(&centres, 1);
+        const nn::DataParallel hook = dist::step_hook(cfg.batch, img_lo);
+        const nn::DataParallelGuard hook_on(&hook);
         const nn::DetOut out = net.forward(x);
-        Tensor loss = detector_loss(out, targets, cfg.w_heat, cfg.w_size, cfg.w_offset, &lh, &ls, &lo);
-        const double lv = loss.item<double>();
+        Tensor loss = detector_loss(out, targets, cfg.w_heat, cfg.w_size, cfg.w_offset, &lh, &ls,
+                                    &lo, centres);
+        double lv = loss.item<double>();
         G2L_CHECK(std::isfinite(lv), "detector training: non-finite loss at step ", step + 1);
         loss.backward();
+        // One all-reduce: every gradient, the loss terms and the stop flags (a signal or the
+        // time limit seen by any process stops all after this step).
+        std::vector<float> extra = {float(lv), float(lh), float(ls), float(lo),
+                                    opt.stop_flag && opt.stop_flag->load() ? 1.f : 0.f,
+                                    cfg.time_limit_min > 0 && elapsed_min() >= cfg.time_limit_min
+                                        ? 1.f : 0.f};
+        const double allreduce_s = dist::allreduce_gradients(adam, extra);
+        if (dist::size() > 1) lv = extra[0], lh = extra[1], ls = extra[2], lo = extra[3];
         adam.step();
         ++step;
         loss_acc += lv, lh_acc += lh, ls_acc += ls, lo_acc += lo, ++acc_n;
         sum.final_loss = lv;
         const double secs = std::chrono::duration<double>(Clock::now() - t0).count();
         if (step % cfg.log_every == 0 || step == cfg.steps) {
-            const json rec{{"step", step},
+            json rec{{"step", step},
                            {"loss", loss_acc / acc_n},
                            {"heat", lh_acc / acc_n},
                            {"size", ls_acc / acc_n},
                            {"offset", lo_acc / acc_n},
                            {"images_per_s", double((step - start_step) * cfg.batch) / std::max(1e-9, secs)},
                            {"minutes", elapsed_min()}};
+            if (dist::size() > 1) rec["allreduce_s"] = allreduce_s;
             run.append("steps.jsonl", rec);
-            if (opt.progress)
+            if (progress)
                 std::printf("step %lld/%lld  loss %.4f (heat %.4f size %.4f offset %.4f)  %.1f img/s  %.1f min\n",
                             (long long)step, (long long)cfg.steps, loss_acc / acc_n, lh_acc / acc_n,
                             ls_acc / acc_n, lo_acc / acc_n,
@@ -423,9 +456,9 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
             loss_acc = lh_acc = ls_acc = lo_acc = 0;
             acc_n = 0;
         }
-        const bool stop_flag = opt.stop_flag && opt.stop_flag->load();
+        const bool stop_flag = extra[4] > 0;
         const bool max_hit = opt.max_steps > 0 && step >= opt.max_steps;
-        const bool time_hit = cfg.time_limit_min > 0 && elapsed_min() >= cfg.time_limit_min;
+        const bool time_hit = extra[5] > 0;
         if (step % cfg.checkpoint_every == 0 || step == cfg.steps || stop_flag || max_hit ||
             time_hit) {
             save("last.g2l",

@@ -129,10 +129,15 @@ DetTargets make_detector_targets(const std::vector<DetBox>& boxes, int K, int w,
 
 /// The loss of a batch: heat logits against stacked targets (focal loss, normalised by the
 /// number of centres), L1 on size and offset at the centre cells. Returns the total and writes
-/// the three parts (unweighted) when the pointers are given.
+/// the three parts (unweighted) when the pointers are given. `centres` >= 0: normalise by this
+/// number of centres instead of the batch's own (data-parallel training: the global batch's,
+/// so the processes' losses add up to the one-process loss); < 0: count this batch's.
 Tensor detector_loss(const nn::DetOut& out, const std::vector<DetTargets>& targets,
                      double w_heat, double w_size, double w_offset, double* heat_loss = nullptr,
-                     double* size_loss = nullptr, double* offset_loss = nullptr);
+                     double* size_loss = nullptr, double* offset_loss = nullptr,
+                     double centres = -1);
+/// The number of centres (heat cells equal to 1) of `targets`, as detector_loss counts them.
+double detector_centres(const std::vector<DetTargets>& targets);
 
 struct DetectorTrainSummary {
     std::string run_dir;

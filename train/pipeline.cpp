@@ -43,11 +43,18 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
                   " points, sample 0 has ", N);
     const int K = net.config().num_keypoints;
     const Tensor onehot = one_hot(samples, num_classes);
+    G2L_CHECK(!opt.sample_rngs || int64_t(opt.sample_rngs->size()) == B, "g2l_step: ",
+              opt.sample_rngs ? opt.sample_rngs->size() : 0, " sample streams for ", B,
+              " samples");
+    auto rng_of = [&](int64_t b) -> Rng& {
+        return opt.sample_rngs ? (*opt.sample_rngs)[size_t(b)] : rng;
+    };
     StepLosses out;
 
     if (opt.rot_only) {
         // Rotation blocks alone on the ground-truth object points (resampled to M).
-        const RotationInput in = gt_rotation_input(samples, M, opt.centre_noise_mm, &rng);
+        const RotationInput in = gt_rotation_input(samples, M, opt.centre_noise_mm, &rng,
+                                                   opt.sample_rngs);
         out.total = rotation_losses(net, samples, in.x, in.object, in.centres, onehot, keypoints,
                                     w, symmetric, opt, &out);
         return out;
@@ -89,7 +96,7 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
         if (idx.empty())
             for (int64_t n = 0; n < N; ++n) idx.push_back(int32_t(n));
         std::vector<int32_t> pick(static_cast<size_t>(M));
-        for (auto& p : pick) p = idx[rng.below(idx.size())];
+        for (auto& p : pick) p = idx[rng_of(b).below(idx.size())];
         Eigen::Vector3f mean = Eigen::Vector3f::Zero();
         for (int32_t p : pick)
             mean += Eigen::Vector3f(s.points[size_t(p) * 3], s.points[size_t(p) * 3 + 1],
@@ -134,7 +141,7 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
             for (int a = 0; a < 3; ++a)
                 c[a] = sel_mean[size_t(b)][a] + t_pred.data<float>()[b * 3 + a];
         } else if (opt.centre_noise_mm > 0) {
-            for (int a = 0; a < 3; ++a) c[a] += float(rng.normal() * opt.centre_noise_mm);
+            for (int a = 0; a < 3; ++a) c[a] += float(rng_of(b).normal() * opt.centre_noise_mm);
         }
         centres[size_t(b)] = c;
         float* pr = xr.data<float>() + b * 3 * M;
@@ -155,14 +162,18 @@ StepLosses g2l_step(nn::G2LNet& net, const std::vector<PoseSample>& samples,
 }
 
 RotationInput gt_rotation_input(const std::vector<PoseSample>& samples, int64_t M,
-                                double noise_mm, Rng* rng) {
+                                double noise_mm, Rng* shared_rng,
+                                std::vector<Rng>* sample_rngs) {
     const int64_t B = int64_t(samples.size());
+    G2L_CHECK(!sample_rngs || int64_t(sample_rngs->size()) == B, "gt_rotation_input: ",
+              sample_rngs ? sample_rngs->size() : 0, " sample streams for ", B, " samples");
     RotationInput in;
     in.x = Tensor::empty({B, 3, M});
     in.object.assign(size_t(B * M), 1);
     in.centres.resize(size_t(B));
     for (int64_t b = 0; b < B; ++b) {
         const PoseSample& s = samples[size_t(b)];
+        Rng* rng = sample_rngs ? &(*sample_rngs)[size_t(b)] : shared_rng;
         std::vector<int32_t> idx;
         for (size_t n = 0; n < s.labels.size(); ++n)
             if (s.labels[n]) idx.push_back(int32_t(n));

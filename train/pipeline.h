@@ -48,6 +48,11 @@ struct StepOptions {
     /// the ground-truth object points centred on the GT translation (+ centre_noise_mm). The
     /// seg/T losses are reported as 0. A cheap warm-up phase (loss.rot_only_epochs).
     bool rot_only = false;
+    /// Per-sample random streams (size B) used instead of g2l_step's `rng`: sample b draws its
+    /// resampling and centre noise from (*sample_rngs)[b] alone, so its draws do not depend on
+    /// which other samples share its batch — data-parallel training (train/distributed.h)
+    /// seeds them by the sample's place in the global batch. Borrowed; null = `rng`.
+    std::vector<Rng>* sample_rngs = nullptr;
 };
 
 /// Scalar values of one step (for logs) and the differentiable total.
@@ -81,8 +86,10 @@ struct RotationInput {
     std::vector<uint8_t> object;           ///< B * M ones
     std::vector<Eigen::Vector3f> centres;  ///< per sample
 };
+/// `sample_rngs` (optional, size B): sample b draws from (*sample_rngs)[b] instead of `rng`.
 RotationInput gt_rotation_input(const std::vector<PoseSample>& samples, int64_t M,
-                                double noise_mm, Rng* rng);
+                                double noise_mm, Rng* rng,
+                                std::vector<Rng>* sample_rngs = nullptr);
 
 /// The rotation blocks alone (A, B, C) on canonical points, as in g2l_step's part 4.
 /// xr: [B, 3, M] points minus `centres` (mm); object[b * M + m] != 0 for points of the object

@@ -33,9 +33,11 @@ void write_atomic(const fs::path& path, const std::string& text) {
 
 }  // namespace
 
-RunDir::RunDir(std::string dir, bool resume, bool force, std::vector<std::string> logs)
-    : dir_(std::move(dir)), resumed_(resume), logs_(std::move(logs)) {
+RunDir::RunDir(std::string dir, bool resume, bool force, std::vector<std::string> logs,
+               bool writer)
+    : dir_(std::move(dir)), resumed_(resume), writer_(writer), logs_(std::move(logs)) {
     G2L_CHECK(!dir_.empty(), "run_dir is empty");
+    if (!writer_) return;
     std::error_code ec;
     if (!resume) {
         for (const char* f : {"config.json", "steps.jsonl", "last.g2l"})
@@ -68,6 +70,7 @@ RunDir::RunDir(std::string dir, bool resume, bool force, std::vector<std::string
 }
 
 void RunDir::begin(const std::string& config_json) const {
+    if (!writer_) return;
     write_atomic(fs::path(dir_) / "config.json", config_json);
     if (resumed_) return;
     for (const std::string& l : logs_) {
@@ -79,6 +82,7 @@ void RunDir::begin(const std::string& config_json) const {
 std::string RunDir::path(const std::string& name) const { return (fs::path(dir_) / name).string(); }
 
 void RunDir::trim_log(const std::string& log, const std::string& key, int64_t max_value) const {
+    if (!writer_) return;
     std::ifstream in(path(log));
     if (!in) return;  // a run killed before its first record
     std::vector<std::string> keep;
@@ -104,6 +108,7 @@ void RunDir::trim_log(const std::string& log, const std::string& key, int64_t ma
 void RunDir::append(const std::string& log, const nlohmann::json& record) const {
     G2L_CHECK(std::find(logs_.begin(), logs_.end(), log) != logs_.end(), "RunDir::append: '", log,
               "' is not a log of this run");
+    if (!writer_) return;
     std::ofstream f(path(log), std::ios::app);
     f << record.dump() << "\n";
     f.flush();

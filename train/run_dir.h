@@ -26,8 +26,11 @@ public:
     ///  - resumed run: needs last.g2l, removes the leftovers of a write a kill interrupted
     ///    (<name>.tmp.<pid>; the file they were to replace is intact).
     /// `logs` are the JSONL logs of the job (e.g. "steps.jsonl"). Throws g2l::Error naming the
-    /// directory.
-    RunDir(std::string dir, bool resume, bool force, std::vector<std::string> logs);
+    /// directory. `writer` false (the ranks other than 0 of a data-parallel job,
+    /// train/distributed.h): the directory is only named — no check, and begin / trim_log /
+    /// append do nothing; rank 0 alone writes, and the trainers save checkpoints only there.
+    RunDir(std::string dir, bool resume, bool force, std::vector<std::string> logs,
+           bool writer = true);
 
     /// Once the job is set up (the checkpoint loaded on a resume): writes `config_json` to
     /// config.json atomically — on a resume that is the effective config, `--set` overrides
@@ -37,6 +40,8 @@ public:
 
     const std::string& dir() const { return dir_; }
     bool resumed() const { return resumed_; }
+    /// False on the non-writing ranks of a data-parallel job.
+    bool writer() const { return writer_; }
     /// <dir>/<name>.
     std::string path(const std::string& name) const;
 
@@ -50,6 +55,7 @@ public:
 private:
     std::string dir_;
     bool resumed_ = false;
+    bool writer_ = true;
     std::vector<std::string> logs_;
 };
 

@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -20,9 +21,12 @@
 #include "geometry/keypoints.h"
 #include "geometry/symmetry.h"
 #include "nn/models/g2l_net.h"
+#include "nn/ops/elementwise.h"
 #include "nn/optim.h"
 #include "nn/schedule.h"
 #include "eval/evaluate.h"
+#include "nn/data_parallel.h"
+#include "train/distributed.h"
 #include "train/model_io.h"
 #include "train/pipeline.h"
 #include "train/sources.h"
@@ -60,11 +64,16 @@ struct RunData {
     std::vector<Src> train, val;
 };
 
+// `extra_ids`: models loaded besides the source's objects (a synthetic scene's distractors,
+// which need no class).
 data::BopDataset* open_source_dataset(RunData& rd, const TrainConfig& cfg, const SourceConfig& s,
-                                     bool models_only) {
+                                     bool models_only, const std::vector<int>& extra_ids = {}) {
     data::BopOptions o;
     o.scenes = s.scenes;
     o.obj_ids = s.objects.empty() ? cfg.data.object_ids : s.objects;
+    for (const int id : extra_ids)
+        if (std::find(o.obj_ids.begin(), o.obj_ids.end(), id) == o.obj_ids.end())
+            o.obj_ids.push_back(id);
     o.models_eval = s.models_eval;
     const std::string root = s.type == "bop" ? s.root : s.models_root;
     const std::string split = models_only ? "" : s.split;
@@ -122,9 +131,14 @@ RunData prepare_data(const TrainConfig& cfg, bool verbose) {
             src.bop = open_source_dataset(rd, cfg, s, false);
             add_models(rd, *src.bop);
         } else {
-            data::BopDataset* ds = open_source_dataset(rd, cfg, s, true);
-            add_models(rd, *ds);
+            // The scene's distractors are rendered but never annotated: their meshes load
+            // with the source's objects, and the targets stay the source's objects.
             src.scene = source_scene(s, "data.train/val synthetic source");
+            if (src.scene.target_obj_ids.empty())
+                src.scene.target_obj_ids = s.objects.empty() ? cfg.data.object_ids : s.objects;
+            data::BopDataset* ds =
+                open_source_dataset(rd, cfg, s, true, src.scene.distractor_obj_ids);
+            add_models(rd, *ds);
             for (const auto& [id, om] : ds->models())
                 src.scene_models.push_back({id, &ds->load_model_mesh(id)});
         }
@@ -245,9 +259,16 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
               "': training runs on the CPU in this version (the CUDA backend is not complete)");
     // ---- the run directory first: a bad one is found before any data is read ----
     const std::string run_dir = opt.resume_dir.empty() ? cfg.run_dir : opt.resume_dir;
-    const RunDir run(run_dir, !opt.resume_dir.empty(), opt.force, {"steps.jsonl", "epochs.jsonl"});
-    RunData rd = prepare_data(cfg, opt.progress);
-    preflight_images(rd, opt.progress);
+    // Data-parallel (train/distributed.h): this process trains on samples [lo, hi) of every
+    // global batch; rank 0 alone writes the run directory, logs and prints.
+    const bool root = dist::is_root();
+    const bool progress = opt.progress && root;
+    const std::pair<int64_t, int64_t> shard = dist::shard(cfg.train.batch);
+    const int64_t lo = shard.first, hi = shard.second;
+    const RunDir run(run_dir, !opt.resume_dir.empty(), opt.force, {"steps.jsonl", "epochs.jsonl"},
+                     root);
+    RunData rd = prepare_data(cfg, progress);
+    preflight_images(rd, progress);
     G2L_CHECK(!rd.train.empty(), "data.train: no training source configured");
 
     nn::G2LConfig mc = model_config(cfg, rd.keypoints.empty() ? 8 : int(rd.keypoints[0].size()));
@@ -288,7 +309,15 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
         run.trim_log("epochs.jsonl", "epoch", epoch - 1);
     }
     run.begin(config_to_json(cfg) + "\n");
-    const bool tty = opt.progress && isatty(fileno(stdout));
+    if (progress && dist::size() > 1) {
+        int64_t params = 0;
+        for (const nn::ParamGroup& g : adam.groups())
+            for (const auto& p : g.params) params += p.second.numel();
+        std::printf("data-parallel: %d processes, %lld of the %d samples of each batch here; one "
+                    "all-reduce of %lld parameters (%.2f MB) per step\n", dist::size(),
+                    (long long)(hi - lo), cfg.train.batch, (long long)params, params * 4e-6);
+    }
+    const bool tty = progress && isatty(fileno(stdout));
 
     TrainSummary sum;
     sum.run_dir = run_dir;
@@ -301,6 +330,7 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
         objects[id] = {mi.diameter, mi.symmetric};
     }
     auto save = [&](const std::string& name) {
+        if (!root) return;  // the checkpoint holds the global state: one writer
         const double now = std::chrono::duration<double>(Clock::now() - t_start).count();
         ResumeState st{epoch, pos, global_step, epoch_batches, epoch_loss, best_val,
                        seconds_before + now};
@@ -319,52 +349,79 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
         net.train();
         const auto t_epoch = Clock::now();
         int64_t tried = 0, failed = 0;
-        // The batch starting at order position `from`; only this reads `sources`, and at most
-        // one call is in flight, so the prefetch thread and the serial path make the same
-        // batches (each sample depends only on its item and its own Rng).
+        G2L_CHECK(!order.empty(), "training data: epoch ", epoch, " has no sample to visit");
+        // Slot i of global batch b is order position b * batch + i; an unusable crop there is
+        // replaced by positions drawn from (seed, slot, attempt). A slot's sample thus depends
+        // only on (epoch, b, i), never on which process makes it or on the other slots: this
+        // process makes slots [lo, hi), and the global batch is the same for any number of
+        // processes (without unusable crops it is the consecutive walk through `order`).
+        // Only `fetch` reads `sources`, and at most one call is in flight, so the prefetch
+        // thread and the serial path make the same batches.
         struct Fetched {
             std::vector<PoseSample> batch;
-            int64_t pos_after = 0, tried = 0, failed = 0;
+            int64_t tried = 0, failed = 0;
         };
-        auto fetch = [&](int64_t from) {
+        auto fetch = [&](int64_t b) {
             Fetched f;
-            f.pos_after = from;
-            while (int(f.batch.size()) < cfg.train.batch && f.pos_after < int64_t(order.size())) {
-                const Item it = order[size_t(f.pos_after++)];
-                Rng srng(mix(mix(cfg.seed, uint64_t(epoch) * 7919 + uint64_t(it.source)),
-                             uint64_t(it.index)));
-                PoseSample s;
-                ++f.tried;
-                if (sources.list[size_t(it.source)]->get(it.index, srng, &s)) f.batch.push_back(std::move(s));
-                else ++f.failed;
+            const uint64_t n = order.size();
+            for (int64_t i = lo; i < hi; ++i) {
+                const uint64_t slot = uint64_t(b * cfg.train.batch + i);
+                for (int a = 0;; ++a) {
+                    G2L_CHECK(a < 64, "training data: 64 crops in a row were unusable (too few "
+                              "points) at epoch ", epoch, " batch ", b, " slot ", i, " — check the "
+                              "sources, sampling.min_points and the depth data");
+                    const uint64_t p = a == 0 ? slot % n : mix(mix(cfg.seed ^ 0x510Full, slot),
+                                                               uint64_t(a)) % n;
+                    const Item it = order[size_t(p)];
+                    Rng srng(mix(mix(cfg.seed, uint64_t(epoch) * 7919 + uint64_t(it.source)),
+                                 uint64_t(it.index)));
+                    PoseSample s;
+                    ++f.tried;
+                    if (sources.list[size_t(it.source)]->get(it.index, srng, &s)) {
+                        f.batch.push_back(std::move(s));
+                        break;
+                    }
+                    ++f.failed;
+                }
             }
             return f;
         };
         std::future<Fetched> ahead;
         const bool prefetch = cfg.train.prefetch;
-        if (prefetch && epoch_batches < batches_per_epoch && pos < int64_t(order.size()))
-            ahead = std::async(std::launch::async, fetch, pos);
-        while (epoch_batches < batches_per_epoch && pos < int64_t(order.size())) {
-            Fetched got = prefetch ? ahead.get() : fetch(pos);
-            pos = got.pos_after;
+        if (prefetch && epoch_batches < batches_per_epoch)
+            ahead = std::async(std::launch::async, fetch, epoch_batches);
+        while (epoch_batches < batches_per_epoch) {
+            Fetched got = prefetch ? ahead.get() : fetch(epoch_batches);
             tried += got.tried;
             failed += got.failed;
             std::vector<PoseSample> batch = std::move(got.batch);
-            if (int(batch.size()) < cfg.train.batch) break;  // epoch exhausted
-            if (prefetch && epoch_batches + 1 < batches_per_epoch && pos < int64_t(order.size()))
-                ahead = std::async(std::launch::async, fetch, pos);
+            if (prefetch && epoch_batches + 1 < batches_per_epoch)
+                ahead = std::async(std::launch::async, fetch, epoch_batches + 1);
             G2L_CHECK(tried < 50 || failed * 10 < tried * 9, "training data: ", failed, " of ",
                       tried, " crops were unusable (too few points) — check the sources, "
                       "sampling.min_points and the depth data");
+            // The step's random draws per sample, seeded by the sample's slot in the global
+            // batch (the same for any number of processes).
             Rng step_rng(mix(cfg.seed, 0xABCDEFull + uint64_t(global_step)));
+            std::vector<Rng> sample_rngs;
+            for (int64_t i = lo; i < hi; ++i)
+                sample_rngs.emplace_back(mix(mix(cfg.seed, 0xABCDEFull + uint64_t(global_step)),
+                                             uint64_t(i)));
+            so.sample_rngs = &sample_rngs;
             const auto t0 = Clock::now();
             adam.zero_grad();
             so.rot_gt_points = epoch < cfg.loss.rot_only_epochs + cfg.loss.rot_gt_points_epochs;
             so.rot_only = epoch < cfg.loss.rot_only_epochs;
+            // BatchNorm and dropout see the global batch through this hook (forward and
+            // backward); each process's loss is weighted by its share of the batch, so the
+            // summed gradients are those of the global batch's mean loss.
+            const nn::DataParallel hook = dist::step_hook(cfg.train.batch, lo);
+            const nn::DataParallelGuard hook_on(&hook);
+            const double share = double(hi - lo) / double(cfg.train.batch);
             StepLosses L = g2l_step(net, batch, rd.keypoints, mc.num_classes,
                                     cfg.sampling.seg_points, lw, step_rng,
                                     rd.sym_keypoints.empty() ? nullptr : &rd.sym_keypoints, so);
-            const double loss = L.total.item<double>();
+            double loss = L.total.item<double>();
             if (!std::isfinite(loss)) {
                 std::string objs;
                 for (const auto& s : batch) objs += " " + std::to_string(s.obj_id);
@@ -372,13 +429,32 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                           epoch, "; objects", objs, "; seg ", L.seg, " t ", L.t, " vec ", L.vec,
                           " kp ", L.kp, " res ", L.res, ")");
             }
-            L.total.backward();
+            (dist::size() > 1 ? nn::mul_scalar(L.total, share) : L.total).backward();
+            // One all-reduce: every gradient, the weighted log terms and the stop flags (a
+            // signal or the time limit seen by any process stops all after this step).
+            const double run_s = seconds_before +
+                                 std::chrono::duration<double>(Clock::now() - t_start).count();
+            std::vector<float> extra = {
+                float(share * loss), float(share * L.seg), float(share * L.t),
+                float(share * L.vec), float(share * L.kp), float(share * L.res),
+                float(share * L.seg_accuracy), float(share * L.t_error_mm),
+                float(share * L.kp_error_mm), float(share * L.sym_fraction),
+                opt.stop_flag && opt.stop_flag->load() ? 1.f : 0.f,
+                cfg.train.time_limit_min > 0 && run_s > cfg.train.time_limit_min * 60 ? 1.f : 0.f};
+            const double allreduce_s = dist::allreduce_gradients(adam, extra);
+            if (dist::size() > 1) {
+                loss = extra[0], L.seg = extra[1], L.t = extra[2], L.vec = extra[3];
+                L.kp = extra[4], L.res = extra[5], L.seg_accuracy = extra[6];
+                L.t_error_mm = extra[7], L.kp_error_mm = extra[8], L.sym_fraction = extra[9];
+            }
+            const bool any_signal = extra[10] > 0, any_time_limit = extra[11] > 0;
             adam.step();
             const double dt = std::chrono::duration<double>(Clock::now() - t0).count();
             ++global_step;
             ++epoch_batches;
             epoch_loss += loss;
-            samples_done += int64_t(batch.size());
+            samples_done += cfg.train.batch;  // the global batch (every process)
+            pos = epoch_batches * cfg.train.batch;  // the checkpoint's order position
             sum.last_loss = epoch_loss / double(epoch_batches);
             if (global_step % std::max(1, cfg.train.log_every) == 0 || epoch_batches == 1) {
                 json j = {{"step", global_step}, {"epoch", epoch}, {"lr", adam.lr()},
@@ -387,6 +463,7 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                           {"t_err_mm", L.t_error_mm}, {"kp_err_mm", L.kp_error_mm},
                           {"sym_frac", L.sym_fraction},
                           {"step_s", dt}};
+                if (dist::size() > 1) j["allreduce_s"] = allreduce_s;
                 run.append("steps.jsonl", j);
             }
             const double elapsed = std::chrono::duration<double>(Clock::now() - t_start).count();
@@ -407,7 +484,7 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                             (long long)epoch_batches, (long long)batches_per_epoch, loss, L.seg,
                             L.t, L.kp, sps, fmt_time(eta).c_str());
                 std::fflush(stdout);
-            } else if (opt.progress && (global_step % std::max(1, cfg.train.log_every) == 0)) {
+            } else if (progress && (global_step % std::max(1, cfg.train.log_every) == 0)) {
                 std::printf("epoch %d/%d step %lld (%lld/%lld) loss %.4f seg %.4f t %.2f vec %.4f "
                             "kp %.2f res %.2f | %.2f samples/s ETA %s\n",
                             epoch + 1, cfg.train.epochs, (long long)global_step,
@@ -416,9 +493,8 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                 std::fflush(stdout);
             }
             if (opt.max_steps > 0 && global_step >= opt.max_steps) stop_reason = "max_steps";
-            if (cfg.train.time_limit_min > 0 && run_seconds > cfg.train.time_limit_min * 60)
-                stop_reason = "time_limit";
-            if (opt.stop_flag && opt.stop_flag->load()) {
+            if (any_time_limit) stop_reason = "time_limit";
+            if (any_signal) {
                 stop_reason = "signal";
                 sum.interrupted = true;
             }
@@ -435,8 +511,9 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
         json ej = {{"epoch", epoch}, {"loss", epoch_batches ? epoch_loss / epoch_batches : 0.0},
                    {"batches", epoch_batches}, {"lr", adam.lr()},
                    {"seconds", std::chrono::duration<double>(Clock::now() - t_epoch).count()}};
-        const bool do_val = !sum.interrupted && !rd.val.empty() && cfg.train.val_every > 0 &&
+        const bool val_epoch = !sum.interrupted && !rd.val.empty() && cfg.train.val_every > 0 &&
                             ((epoch + 1) % cfg.train.val_every == 0 || epoch + 1 == cfg.train.epochs);
+        const bool do_val = root && val_epoch;  // rank 0 validates alone
         double val_auc = -1;
         if (do_val) {
             double s = 0;
@@ -462,8 +539,9 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                 ej["val_acc_addsym_10"] = val_auc;
             }
         }
+        if (val_epoch) dist::barrier();  // the other processes sleep while rank 0 validates
         run.append("epochs.jsonl", ej);
-        if (opt.progress)
+        if (progress)
             std::printf("epoch %d/%d done: loss %.4f%s\n", epoch + 1, cfg.train.epochs,
                     epoch_batches ? epoch_loss / epoch_batches : 0.0,
                     val_auc >= 0 ? (" val ADD-sym acc@0.1d " + std::to_string(val_auc)).c_str() : "");

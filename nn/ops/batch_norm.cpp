@@ -7,6 +7,7 @@
 #include "core/autograd.h"
 #include "core/dispatch.h"
 #include "kernels/batch_norm.h"
+#include "nn/data_parallel.h"
 
 namespace g2l::nn {
 
@@ -26,7 +27,12 @@ Tensor batch_norm(const Tensor& x, const Tensor& gamma, const Tensor& beta, Tens
               "batch_norm: running_mean and running_var must both be given or both omitted");
     G2L_CHECK(training || running_mean.defined(),
               "batch_norm: eval mode needs running statistics");
-    G2L_CHECK(!training || B * S > 1, "batch_norm: training needs more than one value per "
+    // Data-parallel training (nn/data_parallel.h): the statistics of the global batch, and the
+    // matching backward terms, summed over the processes. The reduce is captured now, so the
+    // backward pass sums with the processes of the forward pass.
+    const DataParallel* dp = data_parallel();
+    const kernels::BnReduce reduce = training && dp ? dp->sum : kernels::BnReduce();
+    G2L_CHECK(!training || reduce || B * S > 1, "batch_norm: training needs more than one value per "
                                       "channel, got x ", x.desc());
     G2L_CHECK(eps > 0 && momentum >= 0 && momentum <= 1, "batch_norm: bad eps ", eps,
               " or momentum ", momentum);
@@ -35,18 +41,19 @@ Tensor batch_norm(const Tensor& x, const Tensor& gamma, const Tensor& beta, Tens
     Tensor invstd = Tensor::empty({C}, x.dtype(), x.device());
     Tensor y = Tensor::empty(x.shape(), x.dtype(), x.device());
     kernels::batch_norm_fwd(x, gamma, beta, running_mean, running_var, training, momentum, eps,
-                            mean, invstd, y);
+                            mean, invstd, y, &reduce);
     // The running buffers are not inputs of the graph: eval-mode backward uses the copies in
     // `mean` / `invstd`, so later running-stat updates cannot corrupt it.
     return autograd::record(
         "batch_norm", y, {x, gamma, beta},
-        [x, gamma, mean, invstd, training](const Tensor& dy, autograd::Grads& g) {
+        [x, gamma, mean, invstd, training, reduce](const Tensor& dy, autograd::Grads& g) {
             const int64_t C = x.size(1);
             Tensor sdy = Tensor::empty({C}, dy.dtype(), dy.device());
             Tensor sdyx = Tensor::empty({C}, dy.dtype(), dy.device());
             Tensor dx;
             if (g.needs(0)) dx = Tensor::empty(x.shape(), dy.dtype(), dy.device());
-            kernels::batch_norm_bwd(x, dy, mean, invstd, gamma, training, &dx, sdyx, sdy);
+            kernels::batch_norm_bwd(x, dy, mean, invstd, gamma, training, &dx, sdyx, sdy,
+                                    &reduce);
             if (g.needs(0)) g.add(0, dx);
             if (g.needs(1)) g.add(1, sdyx);
             if (g.needs(2)) g.add(2, sdy);

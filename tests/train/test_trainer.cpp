@@ -96,6 +96,30 @@ TEST_CASE("g2l_train: a short run on synthetic renders lowers the losses", "[tra
         REQUIRE(fs::exists(fs::path(dir) / f));
 }
 
+TEST_CASE("g2l_train: a synthetic scene's distractors need no class", "[train][trainer]") {
+    // One class (object 8); object 14 is only clutter (configs/lm_ablation.json: 2 classes,
+    // the other six LM-O objects as distractors). Its mesh loads with the source's objects.
+    const std::string dir = testing::temp_dir("train_distractors");
+    auto j = nlohmann::json::parse(tiny_config(dir, 1, 8));
+    j["data"]["object_ids"] = {8};
+    j["model"]["num_classes"] = 1;
+    j["data"]["train"][0]["objects"] = {8};
+    j["data"]["train"][0]["scene"]["distractor_obj_ids"] = {14};
+    j["data"]["train"][0]["scene"]["distractors_min"] = 1;
+    j["data"]["train"][0]["scene"]["distractors_max"] = 1;
+    j["data"]["val"][0]["objects"] = {8};
+    train::TrainOptions opt;
+    opt.progress = false;
+    REQUIRE(train::run_training(train::parse_config_text(j.dump(), "d.json"), opt).steps == 2);
+    for (const double l : logged(dir, "loss")) REQUIRE(std::isfinite(l));
+    // A distractor that is not in the dataset is named.
+    j["data"]["train"][0]["scene"]["distractor_obj_ids"] = {99};
+    const std::string dir2 = testing::temp_dir("train_distractors_bad");
+    j["run_dir"] = dir2;
+    REQUIRE_THROWS_WITH(train::run_training(train::parse_config_text(j.dump(), "d.json"), opt),
+                        Catch::Contains("99"));
+}
+
 TEST_CASE("g2l_train: stopping and resuming equals an uninterrupted run, bitwise",
           "[train][trainer][resume]") {
     const std::string a = testing::temp_dir("resume_a"), b = testing::temp_dir("resume_b");

@@ -39,21 +39,14 @@ void gemm_tile(bool trans_a, bool trans_b, int64_t i0, int64_t m, int64_t j0, in
 
 // Eigen's own multi-threaded GEMM chooses its K blocking from the thread count, so results
 // would change with OMP_NUM_THREADS. We keep Eigen single-threaded and split C into tiles
-// whose size depends only on the shape and the tiling asked for (never on the thread count);
-// every tile is computed the same way by whichever thread takes it, so results are bitwise
-// identical for any thread count.
-//
-// GemmTiles::fixed: 512 x 512 tiles. The default, and what the graph ops use: a batch-8 layer
-// is B per-sample products in a row, each of which already has several tiles.
-// GemmTiles::split (a lone batch-1 product, nn::PoseEngine): a product with fewer than 8 tiles
-// has its tile width and then height halved, down to 64 rows x 128 columns, so that both cores
-// get work.
-// Split tiles cost more packing per multiply-add (each tile packs its own rows of op(A) and
-// columns of op(B)): 5-30% on one core for the batch-8 backward shapes (K = 1000-1500), which is
-// why the training ops keep the fixed tiles.
+// whose size depends only on the shape; every tile is computed the same way by whichever
+// thread takes it, so results are bitwise identical for any thread count.
+// Tiles start at 512 x 512; a product with fewer than 8 tiles (a batch-1 layer: [64..1024] x
+// [512..1500] points) has its tile width and then height halved, down to 128 x 64, so that
+// both cores get work. The tile shape is a function of (M, N) only.
 constexpr int64_t kTileM = 512, kTileN = 512, kMinTileM = 64, kMinTileN = 128, kWantTiles = 8;
 
-void split_tile_shape(int64_t M, int64_t N, int64_t* tm, int64_t* tn) {
+void tile_shape(int64_t M, int64_t N, int64_t* tm, int64_t* tn) {
     *tm = kTileM, *tn = kTileN;
     auto tiles = [&] { return ((M + *tm - 1) / *tm) * ((N + *tn - 1) / *tn); };
     while (tiles() < kWantTiles) {
@@ -67,33 +60,29 @@ void split_tile_shape(int64_t M, int64_t N, int64_t* tm, int64_t* tn) {
 
 template <class T>
 void gemm_cpu(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, T alpha, const T* A,
-              int64_t lda, const T* B, int64_t ldb, T beta, T* C, int64_t ldc, GemmTiles tiling) {
+              int64_t lda, const T* B, int64_t ldb, T beta, T* C, int64_t ldc) {
     static const bool single = [] { Eigen::setNbThreads(1); return true; }();
     (void)single;
-    if (M == 0 || N == 0) return;
-    const bool big = M * N * K > (int64_t(1) << 20);
+    MMap<T> c(C, M, N, Eigen::OuterStride<>(ldc));
+    if (beta == T(0)) c.setZero();
+    else if (beta != T(1)) c *= beta;
+    if (M == 0 || N == 0 || K == 0) return;
     int64_t sm = kTileM, sn = kTileN;
-    if (big && tiling == GemmTiles::split) split_tile_shape(M, N, &sm, &sn);
+    if (M * N * K > (int64_t(1) << 20)) tile_shape(M, N, &sm, &sn);
     const int64_t tm = (M + sm - 1) / sm, tn = (N + sn - 1) / sn;
     const int64_t tiles = tm * tn;
-    // beta is applied tile by tile, inside the parallel loop: the same values as one pass over C
-    // first, but split over the threads and done while the tile is about to be used (a batch-8
-    // layer's C is larger than the L3 cache: conv5 writes 8 x 1024 x 1500 floats).
-#pragma omp parallel for schedule(dynamic) if (tiles > 1 && big)
+    const bool parallel = tiles > 1 && M * N * K > (int64_t(1) << 20);
+#pragma omp parallel for schedule(dynamic) if (parallel)
     for (int64_t t = 0; t < tiles; ++t) {
         const int64_t i0 = (t / tn) * sm, j0 = (t % tn) * sn;
-        const int64_t m = std::min(sm, M - i0), n = std::min(sn, N - j0);
-        MMap<T> c(C + i0 * ldc + j0, m, n, Eigen::OuterStride<>(ldc));
-        if (beta == T(0)) c.setZero();
-        else if (beta != T(1)) c *= beta;
-        if (K > 0) gemm_tile<T>(trans_a, trans_b, i0, m, j0, n, K, alpha, A, lda, B, ldb, C, ldc);
+        gemm_tile<T>(trans_a, trans_b, i0, std::min(sm, M - i0), j0, std::min(sn, N - j0), K,
+                     alpha, A, lda, B, ldb, C, ldc);
     }
 }
 
 template void gemm_cpu<float>(bool, bool, int64_t, int64_t, int64_t, float, const float*,
-                              int64_t, const float*, int64_t, float, float*, int64_t, GemmTiles);
+                              int64_t, const float*, int64_t, float, float*, int64_t);
 template void gemm_cpu<double>(bool, bool, int64_t, int64_t, int64_t, double, const double*,
-                               int64_t, const double*, int64_t, double, double*, int64_t,
-                               GemmTiles);
+                               int64_t, const double*, int64_t, double, double*, int64_t);
 
 }  // namespace g2l::kernels

@@ -202,7 +202,7 @@ struct PoseEngine::Impl {
     void run_points(const Affine& A, const float* x, int64_t N, float* y,
                     const float* obj_bias) const {
         kernels::gemm_cpu<float>(false, false, A.cout, N, A.cin, 1.f, A.w.data(), A.cin, x, N, 0.f,
-                                 y, N, kernels::GemmTiles::split);
+                                 y, N);
         const int64_t S = int64_t(start.size()) - 1;
 #pragma omp parallel for schedule(static) if (A.cout * N > 32768)
         for (int64_t r = 0; r < A.cout; ++r) {
@@ -548,8 +548,7 @@ void PoseEngine::estimate(const std::vector<PoseQuery>& qs, int max_points, int 
                 const int64_t off = m.start[s], n = m.start[s + 1] - off;
                 kernels::gemm_cpu<float>(false, false, m.K3, n, m.evf_out.cin, 1.f,
                                          m.evf_out.w.data() + r0 * m.evf_out.cin, m.evf_out.cin,
-                                         h + off, N, 0.f, m.feat.data() + off, N,
-                                         kernels::GemmTiles::split);
+                                         h + off, N, 0.f, m.feat.data() + off, N);
                 for (int64_t r = 0; r < m.K3; ++r) {
                     const float b = m.evf_out.b[size_t(r0 + r)];
                     float* row = m.feat.data() + r * N + off;

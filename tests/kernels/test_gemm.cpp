@@ -81,26 +81,23 @@ TEST_CASE("gemm_cpu: 1 and 2 threads give bitwise identical results", "[kernels]
 #ifndef _OPENMP
     testing::mark_skipped("built without OpenMP: one thread count only");
 #else
-    // Both tilings: the fixed 512 x 512 tiles (graph ops, training) and the split tiles of a
-    // lone batch-1 product (nn::PoseEngine), on a big shape and a batch-1 layer's shape; beta 0
-    // and beta != 0 (C scaled tile by tile).
-    struct Case { int64_t M, N, K; float beta; kernels::GemmTiles tiles; };
-    for (const Case c : {Case{1100, 700, 300, 0.f, kernels::GemmTiles::fixed},
-                         Case{1100, 700, 300, 0.5f, kernels::GemmTiles::fixed},
-                         Case{1024, 1000, 128, 0.f, kernels::GemmTiles::split},
-                         Case{256, 1000, 1152, 0.5f, kernels::GemmTiles::split}}) {
-        INFO("M " << c.M << " N " << c.N << " K " << c.K << " beta " << c.beta << " split "
-                  << (c.tiles == kernels::GemmTiles::split));
+    // Both tile regimes: 512 x 512 tiles (a big product) and the shrunk tiles of a product with
+    // fewer than 8 of them (a batch-1 layer's shape: kernels/gemm_cpu.cpp tile_shape); beta 0
+    // and beta != 0.
+    struct Case { int64_t M, N, K; float beta; };
+    for (const Case c : {Case{1100, 700, 300, 0.f}, Case{1100, 700, 300, 0.5f},
+                         Case{1024, 1000, 128, 0.f}, Case{256, 1000, 1152, 0.5f}}) {
+        INFO("M " << c.M << " N " << c.N << " K " << c.K << " beta " << c.beta);
         const auto A = rnd<float>(size_t(c.M * c.K), 4), B = rnd<float>(size_t(c.K * c.N), 5);
         const auto C0 = rnd<float>(size_t(c.M * c.N), 6);
         std::vector<float> c1 = C0, c2 = C0, ref = C0;
         const int prev = omp_get_max_threads();
         omp_set_num_threads(1);
         kernels::gemm_cpu<float>(false, false, c.M, c.N, c.K, 1.f, A.data(), c.K, B.data(), c.N,
-                                 c.beta, c1.data(), c.N, c.tiles);
+                                 c.beta, c1.data(), c.N);
         omp_set_num_threads(2);
         kernels::gemm_cpu<float>(false, false, c.M, c.N, c.K, 1.f, A.data(), c.K, B.data(), c.N,
-                                 c.beta, c2.data(), c.N, c.tiles);
+                                 c.beta, c2.data(), c.N);
         omp_set_num_threads(prev);
         CHECK(std::memcmp(c1.data(), c2.data(), c1.size() * sizeof(float)) == 0);
         // And the value is the product (a tiling that dropped or doubled a tile would differ).

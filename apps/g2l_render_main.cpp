@@ -15,6 +15,7 @@
 #include <regex>
 #include <sstream>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
 #include "data/bop_writer.h"
 #include "data/render_primitives.h"
@@ -237,8 +238,8 @@ int main(int argc, char** argv) {
             fs::remove_all(scene_dir);
         }
         data::BopSceneWriter writer(scene_dir.string());
-        data::write_file_atomic((root / split / scene_name / "scene_config.json").string(),
-                                data::scene_config_to_json(cfg) + "\n");
+        write_file_atomic((root / split / scene_name / "scene_config.json").string(),
+                          data::scene_config_to_json(cfg) + "\n");
 
         const bool tty = isatty(fileno(stderr));
         const auto t0 = Clock::now();

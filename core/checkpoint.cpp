@@ -6,9 +6,6 @@
 // size: a truncated or corrupt file throws, it never reads out of bounds or allocates wildly.
 #include "core/checkpoint.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <cerrno>
 #include <cstdio>
@@ -17,6 +14,8 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <set>
+
+#include "core/atomic_file.h"
 
 namespace g2l {
 
@@ -48,23 +47,6 @@ void put(std::string& buf, T v) {
 
 uint64_t align_up(uint64_t x) {
     return (x + kCheckpointAlign - 1) / kCheckpointAlign * kCheckpointAlign;
-}
-
-/// An fd that closes itself; write_all retries short writes and EINTR.
-struct File {
-    int fd = -1;
-    ~File() { if (fd >= 0) ::close(fd); }
-};
-
-void write_all(int fd, const void* data, size_t n, const std::string& tmp) {
-    const char* p = static_cast<const char*>(data);
-    while (n > 0) {
-        const ssize_t w = ::write(fd, p, n);
-        if (w < 0 && errno == EINTR) continue;
-        G2L_CHECK(w > 0, "save_checkpoint: writing '", tmp, "' failed: ", std::strerror(errno));
-        p += w;
-        n -= size_t(w);
-    }
 }
 
 struct Entry {
@@ -125,40 +107,24 @@ void save_checkpoint(const std::string& path,
     std::vector<Entry> entries = collect(path, tensors);
     const std::string header = build_header(entries, meta_json);
 
-    const std::string tmp = cat(path, ".tmp.", ::getpid());
-    try {
-        File f;
-        f.fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-        G2L_CHECK(f.fd >= 0, "save_checkpoint: cannot create '", tmp, "': ",
-                  std::strerror(errno));
-        uint64_t h = fnv1a(header.data(), header.size(), kFnvBasis);
-        write_all(f.fd, header.data(), header.size(), tmp);
-        uint64_t pos = header.size();
-        const std::string zeros(kCheckpointAlign, '\0');
-        for (const Entry& e : entries) {
-            const size_t pad = size_t(e.offset - pos);  // < kCheckpointAlign
-            h = fnv1a(zeros.data(), pad, h);
-            write_all(f.fd, zeros.data(), pad, tmp);
-            h = fnv1a(e.t.data(), e.t.nbytes(), h);
-            write_all(f.fd, e.t.data(), e.t.nbytes(), tmp);
-            pos = e.offset + e.t.nbytes();
-        }
-        std::string tail;
-        put<uint64_t>(tail, h);
-        tail.append(kEndMagic, 8);
-        write_all(f.fd, tail.data(), tail.size(), tmp);
-        G2L_CHECK(::fsync(f.fd) == 0, "save_checkpoint: fsync '", tmp, "' failed: ",
-                  std::strerror(errno));
-        const int fd = f.fd;
-        f.fd = -1;
-        G2L_CHECK(::close(fd) == 0, "save_checkpoint: closing '", tmp, "' failed: ",
-                  std::strerror(errno));
-        G2L_CHECK(std::rename(tmp.c_str(), path.c_str()) == 0, "save_checkpoint: renaming '",
-                  tmp, "' to '", path, "' failed: ", std::strerror(errno));
-    } catch (...) {
-        std::remove(tmp.c_str());
-        throw;
+    AtomicFile f(path);
+    uint64_t h = fnv1a(header.data(), header.size(), kFnvBasis);
+    f.write(header.data(), header.size());
+    uint64_t pos = header.size();
+    const std::string zeros(kCheckpointAlign, '\0');
+    for (const Entry& e : entries) {
+        const size_t pad = size_t(e.offset - pos);  // < kCheckpointAlign
+        h = fnv1a(zeros.data(), pad, h);
+        f.write(zeros.data(), pad);
+        h = fnv1a(e.t.data(), e.t.nbytes(), h);
+        f.write(e.t.data(), e.t.nbytes());
+        pos = e.offset + e.t.nbytes();
     }
+    std::string tail;
+    put<uint64_t>(tail, h);
+    tail.append(kEndMagic, 8);
+    f.write(tail.data(), tail.size());
+    f.commit();
 }
 
 // ---------------------------------------------------------------------------------------------

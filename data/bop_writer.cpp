@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
 #include "geometry/mesh_io.h"
 #include "geometry/model_info.h"
@@ -34,7 +35,7 @@ void write_png(const std::string& path, const cv::Mat& img) {
     std::vector<uint8_t> buf;
     G2L_CHECK(cv::imencode(".png", img, buf), "BopSceneWriter: PNG encoding failed for '", path,
               "'");
-    write_file_atomic(path, std::string(buf.begin(), buf.end()));
+    write_file_atomic(path, std::string(buf.begin(), buf.end()), /*durable=*/false);
 }
 
 json box_json(const geom::Box2i& b) {
@@ -52,20 +53,6 @@ std::string assemble(const std::map<int, std::string>& entries) {
 }
 
 }  // namespace
-
-void write_file_atomic(const std::string& path, const std::string& bytes) {
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-        G2L_CHECK(f.good(), "cannot open '", tmp, "' for writing");
-        f.write(bytes.data(), std::streamsize(bytes.size()));
-        f.flush();
-        G2L_CHECK(f.good(), "write failed for '", tmp, "' (", bytes.size(), " bytes)");
-    }
-    std::error_code ec;
-    fs::rename(tmp, path, ec);
-    G2L_CHECK(!ec, "cannot rename '", tmp, "' to '", path, "': ", ec.message());
-}
 
 BopSceneWriter::BopSceneWriter(std::string scene_dir) : dir_(std::move(scene_dir)) {
     for (const char* sub : {"rgb", "depth", "mask", "mask_visib"}) {

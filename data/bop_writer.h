@@ -47,8 +47,4 @@ private:
 /// mesh or a write error.
 void write_bop_models(const std::string& models_dir, const std::vector<SceneModel>& models);
 
-/// Writes `bytes` to `path` atomically (temporary file + rename). Throws g2l::Error naming the
-/// path on failure.
-void write_file_atomic(const std::string& path, const std::string& bytes);
-
 }  // namespace g2l::data

@@ -333,7 +333,7 @@ void check_sources(const TrainConfig& c, const std::vector<SourceConfig>& list,
             G2L_CHECK(!s.models_root.empty(), where, ": '", p, ".models_root' must be set");
             G2L_CHECK(s.frames > 0, where, ": '", p, ".frames' must be > 0, got ", s.frames);
             const data::SceneConfig sc = source_scene(s, where, p + ".scene");
-            const std::vector<int>& allowed = s.objects.empty() ? c.data.object_ids : s.objects;
+            const std::vector<int>& allowed = source_objects(c, s);
             for (size_t k = 0; k < sc.target_obj_ids.size(); ++k) {
                 const int id = sc.target_obj_ids[k];
                 G2L_CHECK(std::count(allowed.begin(), allowed.end(), id) > 0, where, ": '", p,

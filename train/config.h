@@ -169,6 +169,11 @@ TrainConfig parse_config_text(const std::string& json_text, const std::string& s
 /// gives the same config.
 std::string config_to_json(const TrainConfig& cfg);
 
+/// The objects a source serves: its own `objects`, else the run's `data.object_ids`.
+inline const std::vector<int>& source_objects(const TrainConfig& cfg, const SourceConfig& s) {
+    return s.objects.empty() ? cfg.data.object_ids : s.objects;
+}
+
 /// Throws g2l::Error prefixed by `where` and naming the key path and value for any invalid
 /// setting (bad device, points < seg_points, lr <= 0, an object of a source that is not in
 /// data.object_ids, an invalid scene, ...). Does not check that dataset paths exist.

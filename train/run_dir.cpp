@@ -6,32 +6,13 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
 
 namespace g2l::train {
 
 namespace fs = std::filesystem;
-
-namespace {
-
-/// Writes `text` to `path` through a temporary file and a rename: a kill or a full disk leaves
-/// the old file, never half a new one.
-void write_atomic(const fs::path& path, const std::string& text) {
-    const fs::path tmp = path.string() + ".tmp." + std::to_string(::getpid());
-    {
-        std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-        f << text;
-        f.flush();
-        G2L_CHECK(f.good(), "cannot write '", path.string(), "': ", std::strerror(errno));
-    }
-    std::error_code ec;
-    fs::rename(tmp, path, ec);
-    G2L_CHECK(!ec, "cannot write '", path.string(), "': ", ec.message());
-}
-
-}  // namespace
 
 RunDir::RunDir(std::string dir, bool resume, bool force, std::vector<std::string> logs,
                bool writer)
@@ -71,7 +52,7 @@ RunDir::RunDir(std::string dir, bool resume, bool force, std::vector<std::string
 
 void RunDir::begin(const std::string& config_json) const {
     if (!writer_) return;
-    write_atomic(fs::path(dir_) / "config.json", config_json);
+    write_file_atomic((fs::path(dir_) / "config.json").string(), config_json);
     if (resumed_) return;
     for (const std::string& l : logs_) {
         std::ofstream t(path(l), std::ios::trunc);
@@ -102,7 +83,7 @@ void RunDir::trim_log(const std::string& log, const std::string& key, int64_t ma
     in.close();
     std::string text;
     for (const auto& l : keep) text += l + "\n";
-    write_atomic(path(log), text);
+    write_file_atomic(path(log), text);
 }
 
 void RunDir::append(const std::string& log, const nlohmann::json& record) const {

@@ -70,7 +70,7 @@ data::BopDataset* open_source_dataset(RunData& rd, const TrainConfig& cfg, const
                                      bool models_only, const std::vector<int>& extra_ids = {}) {
     data::BopOptions o;
     o.scenes = s.scenes;
-    o.obj_ids = s.objects.empty() ? cfg.data.object_ids : s.objects;
+    o.obj_ids = source_objects(cfg, s);
     for (const int id : extra_ids)
         if (std::find(o.obj_ids.begin(), o.obj_ids.end(), id) == o.obj_ids.end())
             o.obj_ids.push_back(id);
@@ -135,7 +135,7 @@ RunData prepare_data(const TrainConfig& cfg, bool verbose) {
             // with the source's objects, and the targets stay the source's objects.
             src.scene = source_scene(s, "data.train/val synthetic source");
             if (src.scene.target_obj_ids.empty())
-                src.scene.target_obj_ids = s.objects.empty() ? cfg.data.object_ids : s.objects;
+                src.scene.target_obj_ids = source_objects(cfg, s);
             data::BopDataset* ds =
                 open_source_dataset(rd, cfg, s, true, src.scene.distractor_obj_ids);
             add_models(rd, *ds);
@@ -402,11 +402,10 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                       "sampling.min_points and the depth data");
             // The step's random draws per sample, seeded by the sample's slot in the global
             // batch (the same for any number of processes).
-            Rng step_rng(mix(cfg.seed, 0xABCDEFull + uint64_t(global_step)));
+            const uint64_t step_seed = mix(cfg.seed, 0xABCDEFull + uint64_t(global_step));
+            Rng step_rng(step_seed);
             std::vector<Rng> sample_rngs;
-            for (int64_t i = lo; i < hi; ++i)
-                sample_rngs.emplace_back(mix(mix(cfg.seed, 0xABCDEFull + uint64_t(global_step)),
-                                             uint64_t(i)));
+            for (int64_t i = lo; i < hi; ++i) sample_rngs.emplace_back(mix(step_seed, uint64_t(i)));
             so.sample_rngs = &sample_rngs;
             const auto t0 = Clock::now();
             adam.zero_grad();

@@ -1,14 +1,11 @@
 // SPDX-License-Identifier: MIT
 #include "nn/ops/dropout.h"
 
-#include <algorithm>
-#include <cstring>
-#include <vector>
-
 #include "kernels/dropout.h"
 #include "nn/data_parallel.h"
 #include "nn/ops/dim_utils.h"
 #include "nn/ops/elementwise.h"
+#include "nn/ops/shape.h"
 
 namespace g2l::nn {
 
@@ -29,11 +26,7 @@ Tensor dropout(const Tensor& x, double p, bool training, Rng& rng) {
         gshape[0] = dp->global_batch;
         Tensor full = Tensor::empty(gshape, x.dtype());  // host: the Rng stream lives here
         kernels::dropout_mask(full, p, rng);
-        const int64_t row = x.numel() / std::max<int64_t>(1, x.size(0));
-        Tensor mask = Tensor::empty(x.shape(), x.dtype());  // host, moved below
-        std::memcpy(mask.data(), static_cast<const char*>(full.data()) +
-                                     size_t(dp->batch_offset * row) * dtype_size(x.dtype()),
-                    mask.nbytes());
+        const Tensor mask = slice(full, 0, dp->batch_offset, dp->batch_offset + x.size(0));
         return mul(x, mask.to(x.device()));
     }
     Tensor mask = Tensor::empty(x.shape(), x.dtype());  // host: the Rng stream lives here

@@ -16,8 +16,10 @@
 
 using namespace g2l;
 
+// [slow]: 260 refinements, minutes under the sanitizers, whose run leaves [slow] out (the
+// refinement runs there on the fixture frames and on rendered views).
 TEST_CASE("refinement on the real YCB-V frames: never a worse fit than the networks' pose",
-          "[infer][refine][shared]") {
+          "[infer][refine][shared][slow]") {
     const auto shared = testing::shared_data_dir();
     if (!shared) return testing::skip_without_shared_data("refinement on real YCB-V frames");
     const data::Dataset ds = data::open_bop(*shared + "/ycbv", "train_real", {});

@@ -200,11 +200,12 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
         REQUIRE(s.count == 2);
         REQUIRE(s.auc_add <= s.auc_adds + 1e-9);  // ADD >= ADD-S per instance
         // Pinned near the values measured 2026-12-04 (printed above): ADD-S AUC 93.5 (object
-        // 8) and 90.6 (object 14) +- 5; the 8-step model's rotation is near random (103 and
-        // 146 deg), pinned +- 25 deg (another CPU's rounding may move it a little).
+        // 8) and 90.6 (object 14) +- 5 (the same in the portable -O1 sanitizer build). The
+        // 8-step model's rotation is untrained, a random angle: 103 / 146 deg in the native
+        // Release build, 173 deg for object 14 in the portable -O1 build (other rounding, other
+        // random model), so it is not pinned here; the shipped, trained models' rotations are
+        // (tests/infer/test_lm_pose.cpp, test_pose_estimator.cpp, tools/test_install.sh).
         CHECK(s.auc_adds == Approx(s.obj_id == 8 ? 93.5 : 90.6).epsilon(0).margin(5.0));
-        CHECK(s.rot_err_sym_deg_median ==
-              Approx(s.obj_id == 8 ? 103.1 : 145.6).epsilon(0).margin(25.0));
     }
     const std::string md = eval::report_markdown(r);
     REQUIRE_THAT(md, Catch::Contains("009_gelatin_box") && Catch::Contains("**average**"));

@@ -39,8 +39,8 @@ void AtomicFile::write(const void* data, size_t n) {
 
 void AtomicFile::commit(bool durable) {
     G2L_CHECK(fd_ >= 0 && !committed_, "AtomicFile '", path_, "': committed twice");
-    G2L_CHECK(!durable || ::fsync(fd_) == 0, "cannot write '", path_, "': fsync '", tmp_, "' failed: ",
-              std::strerror(errno));
+    G2L_CHECK(!durable || ::fsync(fd_) == 0, "cannot write '", path_, "': fsync '", tmp_,
+              "' failed: ", std::strerror(errno));
     const int fd = fd_;
     fd_ = -1;
     G2L_CHECK(::close(fd) == 0, "cannot write '", path_, "': closing '", tmp_, "' failed: ",

@@ -3,7 +3,10 @@
 
 #include <catch2/catch.hpp>
 #include <cstdlib>
+#include <algorithm>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <iostream>
 #include <random>
 #include <set>
@@ -54,6 +57,18 @@ std::string temp_dir(const std::string& tag) {
                        ("g2l_test_" + tag + "_" + std::to_string(rd()) + std::to_string(rd()));
     fs::create_directories(p);
     return p.string();
+}
+
+std::string read_file(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+std::vector<std::string> dir_entries(const std::string& dir) {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
 }
 
 }  // namespace g2l::testing

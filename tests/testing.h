@@ -4,6 +4,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace g2l::testing {
 
@@ -32,5 +33,11 @@ int skipped_cases();
 
 /// A fresh empty temporary directory (removed at process exit is not guaranteed).
 std::string temp_dir(const std::string& tag);
+
+/// A file's bytes ("" when it cannot be opened).
+std::string read_file(const std::string& path);
+
+/// The names of a directory's entries, sorted.
+std::vector<std::string> dir_entries(const std::string& dir);
 
 }  // namespace g2l::testing

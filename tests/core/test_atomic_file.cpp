@@ -2,9 +2,9 @@
 #include <catch2/catch.hpp>
 
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "core/atomic_file.h"
 #include "testing.h"
@@ -13,44 +13,26 @@ using namespace g2l;
 using Catch::Contains;
 namespace fs = std::filesystem;
 
-namespace {
-
-std::string read_all(const std::string& path) {
-    std::ifstream f(path, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(f), {});
-}
-
-int count_files(const std::string& dir) {
-    int n = 0;
-    for (const auto& e : fs::directory_iterator(dir)) {
-        (void)e;
-        ++n;
-    }
-    return n;
-}
-
-}  // namespace
-
 TEST_CASE("AtomicFile: whole or nothing, the temporary removed, failures name the file",
           "[core][io]") {
-    const std::string dir = g2l::testing::temp_dir("atomic_file");
+    const std::string dir = testing::temp_dir("atomic_file");
     const std::string path = dir + "/a.txt";
 
     // Replaces the old contents only on commit, durable or not.
     write_file_atomic(path, "old");
-    CHECK(read_all(path) == "old");
+    CHECK(testing::read_file(path) == "old");
     {
         AtomicFile f(path);
         f.write("new ", 4);
         f.write("bytes", 5);
-        CHECK(read_all(path) == "old");  // not yet
+        CHECK(testing::read_file(path) == "old");  // not yet
         CHECK(fs::exists(f.temp_path()));
         f.commit(/*durable=*/false);
         REQUIRE_THROWS_WITH(f.commit(), Contains("committed twice"));
         REQUIRE_THROWS_WITH(f.write("x", 1), Contains("write after commit"));
     }
-    CHECK(read_all(path) == "new bytes");
-    CHECK(count_files(dir) == 1);
+    CHECK(testing::read_file(path) == "new bytes");
+    CHECK(testing::dir_entries(dir) == std::vector<std::string>{"a.txt"});
 
     // An exception before commit leaves the old file and no temporary.
     try {
@@ -59,8 +41,8 @@ TEST_CASE("AtomicFile: whole or nothing, the temporary removed, failures name th
         throw std::runtime_error("killed halfway");
     } catch (const std::runtime_error&) {
     }
-    CHECK(read_all(path) == "new bytes");
-    CHECK(count_files(dir) == 1);
+    CHECK(testing::read_file(path) == "new bytes");
+    CHECK(testing::dir_entries(dir) == std::vector<std::string>{"a.txt"});
 
     // A folder that does not exist, and a rename onto a folder: the message names the file and
     // the OS's reason, and nothing is left behind.
@@ -70,7 +52,7 @@ TEST_CASE("AtomicFile: whole or nothing, the temporary removed, failures name th
     fs::create_directories(dir + "/blocker/inside");
     REQUIRE_THROWS_WITH(write_file_atomic(dir + "/blocker", "x"),
                         Contains("cannot write '" + dir + "/blocker'") && Contains("renaming"));
-    CHECK(count_files(dir) == 2);  // a.txt and the blocker folder
+    CHECK(testing::dir_entries(dir) == std::vector<std::string>{"a.txt", "blocker"});
     write_file_atomic(dir + "/empty.txt", "");
     CHECK(fs::file_size(dir + "/empty.txt") == 0);
 }

@@ -4,7 +4,6 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 
 #include "core/checkpoint.h"
 #include "core/json.h"
@@ -16,11 +15,6 @@ using Catch::Contains;
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string read_bytes(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
 
 void write_bytes(const std::string& path, const std::string& bytes) {
     std::ofstream out(path, std::ios::binary | std::ios::trunc);
@@ -77,7 +71,7 @@ TEST_CASE("checkpoint: round trip is bitwise for f32, f64, i32 tensors and metad
     }
     // Layout facts from docs/checkpoint.md: magic, version, meta length, 64-byte aligned data,
     // end magic.
-    const std::string bytes = read_bytes(path);
+    const std::string bytes = testing::read_file(path);
     CHECK(bytes.substr(0, 4) == "G2LW");
     CHECK(bytes[4] == 1);
     CHECK(u64_at(bytes, 8) == std::strlen(kMeta));
@@ -91,7 +85,7 @@ TEST_CASE("checkpoint: round trip is bitwise for f32, f64, i32 tensors and metad
 
     // Saving twice gives identical files (deterministic, padding zeroed).
     save_checkpoint(dir + "/again.g2l", tensors, kMeta);
-    CHECK(read_bytes(dir + "/again.g2l") == bytes);
+    CHECK(testing::read_file(dir + "/again.g2l") == bytes);
 }
 
 TEST_CASE("checkpoint: save is atomic and leaves no temporary file", "[checkpoint]") {
@@ -99,12 +93,7 @@ TEST_CASE("checkpoint: save is atomic and leaves no temporary file", "[checkpoin
     const std::string path = dir + "/a.g2l";
     save_checkpoint(path, sample(), "{}");
     save_checkpoint(path, {{"x", Tensor::ones({3})}}, "{\"v\": 2}");  // overwrite in place
-    int files = 0;
-    for (const auto& e : fs::directory_iterator(dir)) {
-        ++files;
-        CHECK(e.path().filename() == "a.g2l");
-    }
-    CHECK(files == 1);
+    CHECK(testing::dir_entries(dir) == std::vector<std::string>{"a.g2l"});
     const Checkpoint ck = load_checkpoint(path);
     CHECK(ck.meta_json == "{\"v\": 2}");
     CHECK(ck.tensors.size() == 1);
@@ -117,18 +106,13 @@ TEST_CASE("checkpoint: save is atomic and leaves no temporary file", "[checkpoin
     fs::create_directories(dir + "/blocker.g2l/inside");
     REQUIRE_THROWS_WITH(save_checkpoint(dir + "/blocker.g2l", sample(), "{}"),
                         Contains("renaming") && Contains("blocker.g2l"));
-    files = 0;
-    for (const auto& e : fs::directory_iterator(dir)) {
-        (void)e;
-        ++files;
-    }
-    CHECK(files == 2);  // a.g2l and the blocker directory
+    CHECK(testing::dir_entries(dir) == std::vector<std::string>{"a.g2l", "blocker.g2l"});
 }
 
 TEST_CASE("checkpoint: every truncation of a small file throws 'truncated'", "[checkpoint]") {
     const std::string dir = testing::temp_dir("ckpt_cut");
     save_checkpoint(dir + "/full.g2l", sample(), kMeta);
-    const std::string bytes = read_bytes(dir + "/full.g2l");
+    const std::string bytes = testing::read_file(dir + "/full.g2l");
     for (size_t len = 0; len < bytes.size(); ++len) {
         INFO("cut at " << len << " of " << bytes.size() << " bytes");
         // A fresh name per case: re-truncating one file makes ext4 flush on every close (slow).
@@ -143,7 +127,7 @@ TEST_CASE("checkpoint: a flipped byte anywhere is a checksum error (or bad magic
           "[checkpoint]") {
     const std::string dir = testing::temp_dir("ckpt_flip");
     save_checkpoint(dir + "/ok.g2l", sample(), kMeta);
-    const std::string bytes = read_bytes(dir + "/ok.g2l");
+    const std::string bytes = testing::read_file(dir + "/ok.g2l");
     // Every byte before the checksum: magic bytes -> bad magic, version -> unsupported version,
     // anything else (metadata, records, padding, data) -> checksum mismatch.
     for (size_t i = 0; i + 16 < bytes.size(); ++i) {
@@ -181,7 +165,7 @@ TEST_CASE("checkpoint: bad magic, missing file, unsupported version, trailing by
                         Contains("png.g2l") && Contains("not a g2l checkpoint"));
 
     save_checkpoint(dir + "/ok.g2l", sample(), "{}");
-    std::string bytes = read_bytes(dir + "/ok.g2l");
+    std::string bytes = testing::read_file(dir + "/ok.g2l");
     std::string v2 = bytes;
     v2[4] = 2;
     write_bytes(dir + "/v2.g2l", v2);
@@ -222,7 +206,7 @@ TEST_CASE("checkpoint: valid checksum but bad dtype, duplicate names, misaligned
         return b;
     };
     save_checkpoint(dir + "/ok.g2l", {{"aa", Tensor::ones({2})}, {"ab", Tensor::ones({3})}}, "{}");
-    const std::string bytes = read_bytes(dir + "/ok.g2l");
+    const std::string bytes = testing::read_file(dir + "/ok.g2l");
     CHECK(reseal(bytes) == bytes);  // the test's checksum is the format's checksum
     // meta "{}" -> records start at 22; record 0: u32 len, "aa", dtype at 28, ndim 29, dim 30..37
     std::string b = bytes;

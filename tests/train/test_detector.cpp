@@ -250,8 +250,7 @@ TEST_CASE("detector: bad configs, shapes and exports are named errors", "[detect
     REQUIRE(ld.net->state_dict().at("heat.bias").to_vector<float>() ==
             net.state_dict().at("heat.bias").to_vector<float>());
     {
-        std::ifstream in(path, std::ios::binary);
-        std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        const std::string bytes = testing::read_file(path);
         std::ofstream out(path + ".cut", std::ios::binary);
         out.write(bytes.data(), std::streamsize(bytes.size() / 2));
     }

@@ -1,8 +1,20 @@
 // SPDX-License-Identifier: MIT
+// CPU GEMM. float: our own packed GEMM (GotoBLAS / BLIS layout: op(A) and op(B) are packed into
+// MR-row and NR-column micro-panels per K block, and an MR x NR register-blocked micro-kernel
+// does the multiply-adds); double (gradient checks, geometry): Eigen's GEBP on fixed tiles.
 #include "kernels/gemm.h"
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+
+#if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__)) || defined(__SSE2__)
+#include <immintrin.h>
+#endif
+
+#include "core/error.h"
 
 namespace g2l::kernels {
 
@@ -13,71 +25,254 @@ template <class T>
 using CMap = Eigen::Map<const RowMat<T>, 0, Eigen::OuterStride<>>;
 template <class T>
 using MMap = Eigen::Map<RowMat<T>, 0, Eigen::OuterStride<>>;
-}  // namespace
 
-// One tile of C (rows [i0, i0 + m), cols [j0, j0 + n)) with Eigen running single-threaded.
-template <class T>
-void gemm_tile(bool trans_a, bool trans_b, int64_t i0, int64_t m, int64_t j0, int64_t n, int64_t K,
-               T alpha, const T* A, int64_t lda, const T* B, int64_t ldb, T* C, int64_t ldc) {
-    MMap<T> c(C + i0 * ldc + j0, m, n, Eigen::OuterStride<>(ldc));
+// Products below this many multiply-adds run on one thread (a region costs more than it saves).
+constexpr int64_t kParallelMacs = int64_t(1) << 20;
+
+// ---------------------------------------------------------------------------------------------
+// The float micro-kernel's vector type, one set per instruction set. The register block is
+// MR rows x NR = 2 vectors of C: 24 of the 32 zmm registers on AVX-512, 12 of the 16 ymm/xmm
+// registers on AVX2 and SSE2, plus the two B vectors and one broadcast A value.
+#if defined(__AVX512F__) && !defined(G2L_GEMM_GENERIC)
+using vec = __m512;
+constexpr int kVL = 16, kMR = 12;
+inline vec vload(const float* p) { return _mm512_loadu_ps(p); }
+inline void vstore(float* p, vec v) { _mm512_storeu_ps(p, v); }
+inline vec vset1(float x) { return _mm512_set1_ps(x); }
+inline vec vzero() { return _mm512_setzero_ps(); }
+inline vec vfma(vec a, vec b, vec c) { return _mm512_fmadd_ps(a, b, c); }
+#elif defined(__AVX2__) && defined(__FMA__) && !defined(G2L_GEMM_GENERIC)
+using vec = __m256;
+constexpr int kVL = 8, kMR = 6;
+inline vec vload(const float* p) { return _mm256_loadu_ps(p); }
+inline void vstore(float* p, vec v) { _mm256_storeu_ps(p, v); }
+inline vec vset1(float x) { return _mm256_set1_ps(x); }
+inline vec vzero() { return _mm256_setzero_ps(); }
+inline vec vfma(vec a, vec b, vec c) { return _mm256_fmadd_ps(a, b, c); }
+#elif defined(__SSE2__) && !defined(G2L_GEMM_GENERIC)
+using vec = __m128;
+constexpr int kVL = 4, kMR = 6;
+inline vec vload(const float* p) { return _mm_loadu_ps(p); }
+inline void vstore(float* p, vec v) { _mm_storeu_ps(p, v); }
+inline vec vset1(float x) { return _mm_set1_ps(x); }
+inline vec vzero() { return _mm_setzero_ps(); }
+inline vec vfma(vec a, vec b, vec c) { return _mm_add_ps(_mm_mul_ps(a, b), c); }
+#else  // other targets (or G2L_GEMM_GENERIC, to test this path): GCC/Clang vector extensions
+typedef float vec __attribute__((vector_size(16)));
+constexpr int kVL = 4, kMR = 6;
+inline vec vload(const float* p) { vec v; std::memcpy(&v, p, sizeof v); return v; }
+inline void vstore(float* p, vec v) { std::memcpy(p, &v, sizeof v); }
+inline vec vset1(float x) { return vec{x, x, x, x}; }
+inline vec vzero() { return vec{0, 0, 0, 0}; }
+inline vec vfma(vec a, vec b, vec c) { return a * b + c; }
+#endif
+constexpr int kNV = 2, kNR = kNV * kVL;
+
+// Blocking: a K block of kKC keeps one packed A micro-panel (kMR x kKC) in L1 while the
+// micro-kernel walks the B micro-panels of a tile (kKC x kNC, in L2). A C tile is kMC x kNC.
+constexpr int64_t kKC = 256, kMC = 8 * kMR, kNC = 16 * kNR;
+
+// acc = sum_k pa[k][0..MR) (x) pb[k][0..NR) over one K block, then C[0..m, 0..n) += alpha acc.
+// Edge tiles (m < MR or n < NR) go through a full-size buffer so that every element of C gets
+// the same arithmetic wherever it lies: the result does not depend on how C is partitioned.
+void micro_kernel(int64_t kc, const float* pa, const float* pb, float alpha, float* c,
+                  int64_t ldc, int m, int n) {
+    vec acc[kMR][kNV];
+    for (int i = 0; i < kMR; ++i)
+        for (int j = 0; j < kNV; ++j) acc[i][j] = vzero();
+    for (int64_t k = 0; k < kc; ++k) {
+        vec b[kNV];
+        for (int j = 0; j < kNV; ++j) b[j] = vload(pb + j * kVL);
+        for (int i = 0; i < kMR; ++i) {
+            const vec a = vset1(pa[i]);
+            for (int j = 0; j < kNV; ++j) acc[i][j] = vfma(a, b[j], acc[i][j]);
+        }
+        pa += kMR;
+        pb += kNR;
+    }
+    const vec va = vset1(alpha);
+    if (m == kMR && n == kNR) {
+        for (int i = 0; i < kMR; ++i)
+            for (int j = 0; j < kNV; ++j)
+                vstore(c + i * ldc + j * kVL, vfma(va, acc[i][j], vload(c + i * ldc + j * kVL)));
+        return;
+    }
+    alignas(64) float buf[kMR * kNR] = {};
+    for (int i = 0; i < m; ++i) std::memcpy(buf + i * kNR, c + i * ldc, size_t(n) * sizeof(float));
+    for (int i = 0; i < kMR; ++i)
+        for (int j = 0; j < kNV; ++j)
+            vstore(buf + i * kNR + j * kVL, vfma(va, acc[i][j], vload(buf + i * kNR + j * kVL)));
+    for (int i = 0; i < m; ++i) std::memcpy(c + i * ldc, buf + i * kNR, size_t(n) * sizeof(float));
+}
+
+// Packs rows [r0, r0 + kMR) x K block [k0, k0 + kc) of op(A) as dst[k][i]; rows >= M are zero.
+void pack_a_panel(bool trans_a, const float* A, int64_t lda, int64_t M, int64_t r0, int64_t k0,
+                  int64_t kc, float* dst) {
+    const int rows = int(std::min<int64_t>(kMR, M - r0));
+    if (trans_a) {  // op(A)(r, k) = A[k][r]: a row of A holds consecutive r
+        for (int64_t k = 0; k < kc; ++k) {
+            const float* src = A + (k0 + k) * lda + r0;
+            float* d = dst + k * kMR;
+            int i = 0;
+            for (; i < rows; ++i) d[i] = src[i];
+            for (; i < kMR; ++i) d[i] = 0.f;
+        }
+    } else {  // op(A)(r, k) = A[r][k]
+        for (int i = 0; i < kMR; ++i) {
+            if (i < rows) {
+                const float* src = A + (r0 + i) * lda + k0;
+                for (int64_t k = 0; k < kc; ++k) dst[k * kMR + i] = src[k];
+            } else {
+                for (int64_t k = 0; k < kc; ++k) dst[k * kMR + i] = 0.f;
+            }
+        }
+    }
+}
+
+// Packs K block [k0, k0 + kc) x columns [c0, c0 + kNR) of op(B) as dst[k][j]; columns >= N are 0.
+void pack_b_panel(bool trans_b, const float* B, int64_t ldb, int64_t N, int64_t c0, int64_t k0,
+                  int64_t kc, float* dst) {
+    const int cols = int(std::min<int64_t>(kNR, N - c0));
+    if (trans_b) {  // op(B)(k, c) = B[c][k]
+        for (int j = 0; j < kNR; ++j) {
+            if (j < cols) {
+                const float* src = B + (c0 + j) * ldb + k0;
+                for (int64_t k = 0; k < kc; ++k) dst[k * kNR + j] = src[k];
+            } else {
+                for (int64_t k = 0; k < kc; ++k) dst[k * kNR + j] = 0.f;
+            }
+        }
+    } else {  // op(B)(k, c) = B[k][c]: a row of B holds consecutive c
+        for (int64_t k = 0; k < kc; ++k) {
+            const float* src = B + (k0 + k) * ldb + c0;
+            float* d = dst + k * kNR;
+            std::memcpy(d, src, size_t(cols) * sizeof(float));
+            for (int j = cols; j < kNR; ++j) d[j] = 0.f;
+        }
+    }
+}
+
+// The packing buffers of the calling thread, grown on demand, 64-byte aligned. OpenMP workers
+// read the caller's buffers; two user threads calling gemm at once each have their own.
+float* scratch(int which, size_t floats) {
+    struct Buf {
+        std::unique_ptr<float, decltype(&std::free)> p{nullptr, &std::free};
+        size_t n = 0;
+    };
+    thread_local Buf bufs[2];
+    Buf& b = bufs[which];
+    if (b.n < floats) {
+        const size_t bytes = ((floats * sizeof(float) + 63) / 64) * 64;
+        b.p.reset(static_cast<float*>(std::aligned_alloc(64, bytes)));
+        G2L_CHECK(b.p != nullptr, "gemm_cpu: out of memory for a ", bytes, "-byte packing buffer");
+        b.n = floats;
+    }
+    return b.p.get();
+}
+
+void sgemm_packed(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, float alpha,
+                  const float* A, int64_t lda, const float* B, int64_t ldb, float* C,
+                  int64_t ldc) {
+    const int64_t pm = (M + kMR - 1) / kMR, pn = (N + kNR - 1) / kNR;  // micro-panels
+    const int64_t kc_max = std::min(K, kKC);
+    float* pa = scratch(0, size_t(pm * kMR * kc_max));
+    float* pb = scratch(1, size_t(pn * kNR * kc_max));
+    // Tiles of C: kMC x kNC, narrowed on a small product so that every thread has some. Each
+    // element's sum runs over the same K blocks in the same order whatever the tile, so the
+    // partition (and the thread count) never changes a bit of the result.
+    const int64_t tpm = kMC / kMR, tpn = kNC / kNR;  // micro-panels per tile
+    const int64_t tm = (pm + tpm - 1) / tpm, tn = (pn + tpn - 1) / tpn, tiles = tm * tn;
+    const bool parallel = M * N * K > kParallelMacs;
+    for (int64_t k0 = 0; k0 < K; k0 += kKC) {
+        const int64_t kc = std::min(kKC, K - k0);
+#pragma omp parallel if (parallel)
+        {
+#pragma omp for schedule(static) nowait
+            for (int64_t p = 0; p < pm; ++p)
+                pack_a_panel(trans_a, A, lda, M, p * kMR, k0, kc, pa + p * kMR * kc);
+#pragma omp for schedule(static)
+            for (int64_t q = 0; q < pn; ++q)
+                pack_b_panel(trans_b, B, ldb, N, q * kNR, k0, kc, pb + q * kNR * kc);
+#pragma omp for schedule(dynamic)
+            for (int64_t t = 0; t < tiles; ++t) {
+                const int64_t p0 = (t / tn) * tpm, p1 = std::min(pm, p0 + tpm);
+                const int64_t q0 = (t % tn) * tpn, q1 = std::min(pn, q0 + tpn);
+                for (int64_t p = p0; p < p1; ++p) {
+                    const int64_t r0 = p * kMR;
+                    const int m = int(std::min<int64_t>(kMR, M - r0));
+                    for (int64_t q = q0; q < q1; ++q) {
+                        const int64_t c0 = q * kNR;
+                        micro_kernel(kc, pa + p * kMR * kc, pb + q * kNR * kc, alpha,
+                                     C + r0 * ldc + c0, ldc, m, int(std::min<int64_t>(kNR, N - c0)));
+                    }
+                }
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// double: Eigen's GEBP on tiles of C whose size depends only on the shape, Eigen itself kept
+// single-threaded (its own threading picks its K blocking from the thread count), so results
+// are bitwise identical for any thread count.
+constexpr int64_t kTileM = 512, kTileN = 512;
+
+void dgemm_tile(bool trans_a, bool trans_b, int64_t i0, int64_t m, int64_t j0, int64_t n,
+                int64_t K, double alpha, const double* A, int64_t lda, const double* B,
+                int64_t ldb, double* C, int64_t ldc) {
+    MMap<double> c(C + i0 * ldc + j0, m, n, Eigen::OuterStride<>(ldc));
     // op(A) rows i0.. : A + i0*lda (not transposed) or A + i0 (transposed, A stored [K, M]).
     // op(B) cols j0.. : B + j0 (not transposed) or B + j0*ldb (transposed, B stored [N, K]).
+    using M_ = CMap<double>;
     if (!trans_a && !trans_b) {
-        c.noalias() += alpha * (CMap<T>(A + i0 * lda, m, K, Eigen::OuterStride<>(lda)) *
-                                CMap<T>(B + j0, K, n, Eigen::OuterStride<>(ldb)));
+        c.noalias() += alpha * (M_(A + i0 * lda, m, K, Eigen::OuterStride<>(lda)) *
+                                M_(B + j0, K, n, Eigen::OuterStride<>(ldb)));
     } else if (trans_a && !trans_b) {
-        c.noalias() += alpha * (CMap<T>(A + i0, K, m, Eigen::OuterStride<>(lda)).transpose() *
-                                CMap<T>(B + j0, K, n, Eigen::OuterStride<>(ldb)));
+        c.noalias() += alpha * (M_(A + i0, K, m, Eigen::OuterStride<>(lda)).transpose() *
+                                M_(B + j0, K, n, Eigen::OuterStride<>(ldb)));
     } else if (!trans_a && trans_b) {
-        c.noalias() += alpha * (CMap<T>(A + i0 * lda, m, K, Eigen::OuterStride<>(lda)) *
-                                CMap<T>(B + j0 * ldb, n, K, Eigen::OuterStride<>(ldb)).transpose());
+        c.noalias() += alpha * (M_(A + i0 * lda, m, K, Eigen::OuterStride<>(lda)) *
+                                M_(B + j0 * ldb, n, K, Eigen::OuterStride<>(ldb)).transpose());
     } else {
-        c.noalias() += alpha * (CMap<T>(A + i0, K, m, Eigen::OuterStride<>(lda)).transpose() *
-                                CMap<T>(B + j0 * ldb, n, K, Eigen::OuterStride<>(ldb)).transpose());
+        c.noalias() += alpha * (M_(A + i0, K, m, Eigen::OuterStride<>(lda)).transpose() *
+                                M_(B + j0 * ldb, n, K, Eigen::OuterStride<>(ldb)).transpose());
     }
 }
 
-// Eigen's own multi-threaded GEMM chooses its K blocking from the thread count, so results
-// would change with OMP_NUM_THREADS. We keep Eigen single-threaded and split C into tiles
-// whose size depends only on the shape; every tile is computed the same way by whichever
-// thread takes it, so results are bitwise identical for any thread count.
-// Tiles start at 512 x 512; a product with fewer than 8 tiles (a batch-1 layer: [64..1024] x
-// [512..1500] points) has its tile width and then height halved, down to 128 x 64, so that
-// both cores get work. The tile shape is a function of (M, N) only.
-constexpr int64_t kTileM = 512, kTileN = 512, kMinTileM = 64, kMinTileN = 128, kWantTiles = 8;
-
-void tile_shape(int64_t M, int64_t N, int64_t* tm, int64_t* tn) {
-    *tm = kTileM, *tn = kTileN;
-    auto tiles = [&] { return ((M + *tm - 1) / *tm) * ((N + *tn - 1) / *tn); };
-    while (tiles() < kWantTiles) {
-        if (*tn > kMinTileN && *tn >= N / 2) *tn /= 2;
-        else if (*tm > kMinTileM && *tm >= M / 2) *tm /= 2;
-        else if (*tn > kMinTileN) *tn /= 2;
-        else if (*tm > kMinTileM) *tm /= 2;
-        else break;
+void dgemm_tiled(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, double alpha,
+                 const double* A, int64_t lda, const double* B, int64_t ldb, double* C,
+                 int64_t ldc) {
+    static const bool single = [] { Eigen::setNbThreads(1); return true; }();
+    (void)single;
+    const int64_t tm = (M + kTileM - 1) / kTileM, tn = (N + kTileN - 1) / kTileN;
+    const int64_t tiles = tm * tn;
+    const bool parallel = tiles > 1 && M * N * K > kParallelMacs;
+#pragma omp parallel for schedule(dynamic) if (parallel)
+    for (int64_t t = 0; t < tiles; ++t) {
+        const int64_t i0 = (t / tn) * kTileM, j0 = (t % tn) * kTileN;
+        dgemm_tile(trans_a, trans_b, i0, std::min(kTileM, M - i0), j0, std::min(kTileN, N - j0),
+                   K, alpha, A, lda, B, ldb, C, ldc);
     }
 }
+
+void gemm_impl(bool ta, bool tb, int64_t M, int64_t N, int64_t K, float alpha, const float* A,
+               int64_t lda, const float* B, int64_t ldb, float* C, int64_t ldc) {
+    sgemm_packed(ta, tb, M, N, K, alpha, A, lda, B, ldb, C, ldc);
+}
+void gemm_impl(bool ta, bool tb, int64_t M, int64_t N, int64_t K, double alpha, const double* A,
+               int64_t lda, const double* B, int64_t ldb, double* C, int64_t ldc) {
+    dgemm_tiled(ta, tb, M, N, K, alpha, A, lda, B, ldb, C, ldc);
+}
+}  // namespace
 
 template <class T>
 void gemm_cpu(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, T alpha, const T* A,
               int64_t lda, const T* B, int64_t ldb, T beta, T* C, int64_t ldc) {
-    static const bool single = [] { Eigen::setNbThreads(1); return true; }();
-    (void)single;
     MMap<T> c(C, M, N, Eigen::OuterStride<>(ldc));
     if (beta == T(0)) c.setZero();
     else if (beta != T(1)) c *= beta;
     if (M == 0 || N == 0 || K == 0) return;
-    int64_t sm = kTileM, sn = kTileN;
-    if (M * N * K > (int64_t(1) << 20)) tile_shape(M, N, &sm, &sn);
-    const int64_t tm = (M + sm - 1) / sm, tn = (N + sn - 1) / sn;
-    const int64_t tiles = tm * tn;
-    const bool parallel = tiles > 1 && M * N * K > (int64_t(1) << 20);
-#pragma omp parallel for schedule(dynamic) if (parallel)
-    for (int64_t t = 0; t < tiles; ++t) {
-        const int64_t i0 = (t / tn) * sm, j0 = (t % tn) * sn;
-        gemm_tile<T>(trans_a, trans_b, i0, std::min(sm, M - i0), j0, std::min(sn, N - j0), K,
-                     alpha, A, lda, B, ldb, C, ldc);
-    }
+    gemm_impl(trans_a, trans_b, M, N, K, alpha, A, lda, B, ldb, C, ldc);
 }
 
 template void gemm_cpu<float>(bool, bool, int64_t, int64_t, int64_t, float, const float*,

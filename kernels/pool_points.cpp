@@ -2,6 +2,8 @@
 // max_pool_points: the dispatch point (kernels/dispatch.h); CPU kernels in pool_points_cpu.cpp.
 #include "kernels/pool_points.h"
 
+#include <algorithm>
+
 #include "kernels/dispatch.h"
 
 namespace g2l::kernels {
@@ -19,7 +21,7 @@ void max_pool_points_bwd(const Tensor& dy, const Tensor& arg, Tensor& dx) {
     dispatch("max_pool_points backward", {&dy, &arg, &dx}, [&](auto tag) {
         using T = decltype(tag);
         T* p = dx.data<T>();
-        for (int64_t i = 0; i < dx.numel(); ++i) p[i] = T(0);
+        std::fill(p, p + dx.numel(), T(0));
         max_pool_points_bwd_cpu<T>(dy.data<T>(), arg.data<int32_t>(), R, N, p);
     });
 }

@@ -5,12 +5,15 @@
 // "Skipped" instead of "Passed". A run with at least one test that did run exits as Catch2 says.
 // A run whose filter matched no test case fails (exit 3): a misspelt tag in CI or in a CTest
 // entry must not pass silently (listing the tests, as catch_discover_tests does, is not a run).
+// Recycled CPU blocks are poisoned with NaN bytes (core/storage.h) in every test binary, so that
+// a kernel that reads an output it never wrote fails here instead of reading a stale value.
 #define CATCH_CONFIG_RUNNER
 #include <catch2/catch.hpp>
 
 #include <cstdio>
 #include <string>
 
+#include "core/storage.h"
 #include "testing.h"
 
 namespace {
@@ -25,6 +28,7 @@ struct CaseCounter : Catch::TestEventListenerBase {
 CATCH_REGISTER_LISTENER(CaseCounter)
 
 int main(int argc, char* argv[]) {
+    g2l::Storage::set_cpu_cache_poison(true);
     bool listing = false;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];

@@ -1,9 +1,13 @@
 // SPDX-License-Identifier: MIT
 #include <catch2/catch.hpp>
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <vector>
 
 #include "core/autograd.h"
 #include "core/rng.h"
+#include "core/storage.h"
 #include "core/tensor.h"
 
 using namespace g2l;
@@ -88,4 +92,56 @@ TEST_CASE("rng: deterministic streams, state round trip, distribution moments", 
         REQUIRE(k < 4);
     }
     REQUIRE_THROWS_WITH(r.below(0), Catch::Contains("n must be > 0"));
+}
+
+TEST_CASE("storage: large CPU blocks are recycled within the cache's limit", "[core]") {
+    Storage::release_cpu_cache();
+    REQUIRE(Storage::cpu_bytes_cached() == 0);
+    const int64_t limit = Storage::cpu_cache_limit();
+    const int64_t mib4 = int64_t(4) << 20;
+    CHECK_THROWS_WITH(Storage::set_cpu_cache_limit(-1), Catch::Contains("must be >= 0, got -1"));
+    if (limit == 0) {  // an AddressSanitizer build (or G2L_CPU_CACHE_MB=0): nothing is kept
+        { Tensor t = Tensor::empty({1 << 20}); }
+        CHECK(Storage::cpu_bytes_cached() == 0);
+        WARN("the CPU block cache is off in this build: only its off state was checked");
+        return;
+    }
+    const void* p = nullptr;
+    { const Tensor a = Tensor::empty({1 << 20}); p = a.data(); }  // 4 MiB
+    CHECK(Storage::cpu_bytes_cached() == mib4);
+    {
+        const Tensor b = Tensor::empty({1 << 20});
+        CHECK(b.data() == p);
+        CHECK(Storage::cpu_bytes_cached() == 0);
+        CHECK(std::isnan(b.data<float>()[12345]));  // the tests poison recycled blocks
+    }
+    {   // up to 1/8 smaller takes it back; half the size does not
+        const Tensor c = Tensor::empty({(1 << 20) - 100000});
+        CHECK(c.data() == p);
+    }
+    {
+        const Tensor d = Tensor::empty({1 << 19});
+        CHECK(d.data() != p);
+        CHECK(Storage::cpu_bytes_cached() == mib4);
+    }
+    {   // zeros() on a recycled (poisoned) block is zero
+        const Tensor z = Tensor::zeros({1 << 20});
+        CHECK(z.data() == p);
+        const std::vector<float> v = z.to_vector<float>();
+        CHECK(std::count(v.begin(), v.end(), 0.f) == int64_t(v.size()));
+    }
+    {   // small blocks go back to malloc
+        const int64_t before = Storage::cpu_bytes_cached();
+        { const Tensor s = Tensor::empty({1000}); }
+        CHECK(Storage::cpu_bytes_cached() == before);
+    }
+    // A lower limit frees the oldest blocks now, and a block larger than the limit is not kept.
+    Storage::set_cpu_cache_limit(int64_t(3) << 20);
+    CHECK(Storage::cpu_bytes_cached() <= int64_t(3) << 20);
+    { const Tensor big = Tensor::empty({1 << 20}); }
+    CHECK(Storage::cpu_bytes_cached() <= int64_t(3) << 20);
+    Storage::set_cpu_cache_limit(limit);
+    CHECK(Storage::cpu_cache_limit() == limit);
+    Storage::release_cpu_cache();
+    CHECK(Storage::cpu_bytes_cached() == 0);
 }

@@ -22,8 +22,18 @@ public:
     explicit Rng(uint64_t seed = 0x9E3779B97F4A7C15ull) { reseed(seed); }
     void reseed(uint64_t seed);
 
-    /// Next raw 64-bit value.
-    uint64_t next_u64();
+    /// Next raw 64-bit value (inline: dropout draws one per element of its mask).
+    uint64_t next_u64() {
+        const uint64_t result = rotl(s_[1] * 5, 7) * 9;
+        const uint64_t t = s_[1] << 17;
+        s_[2] ^= s_[0];
+        s_[3] ^= s_[1];
+        s_[1] ^= s_[2];
+        s_[0] ^= s_[3];
+        s_[2] ^= t;
+        s_[3] = rotl(s_[3], 45);
+        return result;
+    }
     /// Uniform double in [0, 1).
     double uniform() { return double(next_u64() >> 11) * 0x1.0p-53; }
     /// Uniform double in [lo, hi).
@@ -41,6 +51,7 @@ public:
     void set_state(const std::array<uint64_t, 4>& s) { s_ = s; }
 
 private:
+    static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
     std::array<uint64_t, 4> s_{};
 };
 

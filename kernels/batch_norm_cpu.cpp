@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "kernels/batch_norm.h"
 
+#include "kernels/lanes.h"
+
 namespace g2l::kernels {
 
 // Statistics use a two-pass (mean, then squared deviations) scheme in double-width
@@ -11,22 +13,22 @@ void bn_stats_cpu(const T* x, int64_t B, int64_t C, int64_t S, T* mean, T* var) 
     const double M = double(B * S);
 #pragma omp parallel for schedule(static) if (B * C * S > 16384)
     for (int64_t c = 0; c < C; ++c) {
-        double s = 0;
+        Lanes<double> s;
         for (int64_t b = 0; b < B; ++b) {
             const T* row = x + (b * C + c) * S;
-            for (int64_t i = 0; i < S; ++i) s += row[i];
+            s.add(S, [row](int64_t i) { return double(row[i]); });
         }
-        const double m = s / M;
-        double q = 0;
+        const double m = s.total() / M;
+        Lanes<double> q;
         for (int64_t b = 0; b < B; ++b) {
             const T* row = x + (b * C + c) * S;
-            for (int64_t i = 0; i < S; ++i) {
+            q.add(S, [row, m](int64_t i) {
                 const double d = double(row[i]) - m;
-                q += d * d;
-            }
+                return d * d;
+            });
         }
         mean[c] = T(m);
-        var[c] = T(q / M);
+        var[c] = T(q.total() / M);
     }
 }
 
@@ -52,15 +54,14 @@ void bn_backward_cpu(const T* x, const T* dy, const T* mean, const T* invstd, co
 #pragma omp parallel for schedule(static) if (B * C * S > 16384)
     for (int64_t c = 0; c < C; ++c) {
         const T m = mean[c], is = invstd[c];
-        T sdy = 0, sdyx = 0;
+        Lanes<T> ldy, ldyx;
         for (int64_t b = 0; b < B; ++b) {
             const T* xr = x + (b * C + c) * S;
             const T* dr = dy + (b * C + c) * S;
-            for (int64_t i = 0; i < S; ++i) {
-                sdy += dr[i];
-                sdyx += dr[i] * (xr[i] - m) * is;
-            }
+            ldy.add(S, [dr](int64_t i) { return dr[i]; });
+            ldyx.add(S, [dr, xr, m, is](int64_t i) { return dr[i] * (xr[i] - m) * is; });
         }
+        const T sdy = ldy.total(), sdyx = ldyx.total();
         sum_dy[c] = sdy;
         sum_dy_xhat[c] = sdyx;
         if (!dx) continue;
@@ -85,15 +86,19 @@ void bn_moment_cpu(const T* x, int64_t B, int64_t C, int64_t S, const double* sh
 #pragma omp parallel for schedule(static) if (B * C * S > 16384)
     for (int64_t c = 0; c < C; ++c) {
         const double m = shift ? shift[c] : 0.0;
-        double s = 0;
+        Lanes<double> s;
         for (int64_t b = 0; b < B; ++b) {
             const T* row = x + (b * C + c) * S;
-            for (int64_t i = 0; i < S; ++i) {
-                const double d = double(row[i]) - m;
-                s += square ? d * d : d;
+            if (square) {
+                s.add(S, [row, m](int64_t i) {
+                    const double d = double(row[i]) - m;
+                    return d * d;
+                });
+            } else {
+                s.add(S, [row, m](int64_t i) { return double(row[i]) - m; });
             }
         }
-        out[c] = s;
+        out[c] = s.total();
     }
 }
 

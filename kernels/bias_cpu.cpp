@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "kernels/bias.h"
 
+#include "kernels/lanes.h"
+
 namespace g2l::kernels {
 
 template <class T>
@@ -17,11 +19,12 @@ template <class T>
 void bias_grad_bcn_cpu(const T* dy, T* db, int64_t B, int64_t C, int64_t N, bool accumulate) {
 #pragma omp parallel for schedule(static) if (B * C * N > 32768)
     for (int64_t c = 0; c < C; ++c) {
-        T s = 0;
+        Lanes<T> l;
         for (int64_t b = 0; b < B; ++b) {
             const T* row = dy + (b * C + c) * N;
-            for (int64_t n = 0; n < N; ++n) s += row[n];
+            l.add(N, [row](int64_t n) { return row[n]; });
         }
+        const T s = l.total();
         db[c] = accumulate ? db[c] + s : s;
     }
 }

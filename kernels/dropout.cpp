@@ -10,7 +10,8 @@ void dropout_mask(Tensor& mask, double p, Rng& rng) {
     dispatch("dropout mask", {&mask}, [&](auto tag) {
         using T = decltype(tag);
         T* m = mask.data<T>();
-        for (int64_t i = 0; i < mask.numel(); ++i) m[i] = rng.uniform() < p ? T(0) : T(keep_scale);
+        const int64_t n = mask.numel();
+        for (int64_t i = 0; i < n; ++i) m[i] = rng.uniform() < p ? T(0) : T(keep_scale);
     });
 }
 

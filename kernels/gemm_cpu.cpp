@@ -16,6 +16,10 @@
 
 #include "core/error.h"
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 namespace g2l::kernels {
 
 namespace {
@@ -105,51 +109,104 @@ void micro_kernel(int64_t kc, const float* pa, const float* pb, float alpha, flo
     for (int i = 0; i < m; ++i) std::memcpy(c + i * ldc, buf + i * kNR, size_t(n) * sizeof(float));
 }
 
-// Packs rows [r0, r0 + kMR) x K block [k0, k0 + kc) of op(A) as dst[k][i]; rows >= M are zero.
-void pack_a_panel(bool trans_a, const float* A, int64_t lda, int64_t M, int64_t r0, int64_t k0,
-                  int64_t kc, float* dst) {
-    const int rows = int(std::min<int64_t>(kMR, M - r0));
-    if (trans_a) {  // op(A)(r, k) = A[k][r]: a row of A holds consecutive r
-        for (int64_t k = 0; k < kc; ++k) {
-            const float* src = A + (k0 + k) * lda + r0;
-            float* d = dst + k * kMR;
-            int i = 0;
-            for (; i < rows; ++i) d[i] = src[i];
-            for (; i < kMR; ++i) d[i] = 0.f;
-        }
-    } else {  // op(A)(r, k) = A[r][k]
-        for (int i = 0; i < kMR; ++i) {
-            if (i < rows) {
-                const float* src = A + (r0 + i) * lda + k0;
-                for (int64_t k = 0; k < kc; ++k) dst[k * kMR + i] = src[k];
+// Packing. A matrix X of `rows` x K (op(A): rows M; op(B) transposed: rows N) is packed for one
+// K block [k0, k0 + kc) into panels of R rows, panel p at dst + p * R * kc laid out [k][R]; rows
+// past the end are zero. X is stored either with its rows contiguous (element (r, k) at
+// X[k * ld + r]: A transposed, B not) or with K contiguous (X[r * ld + k]: A not transposed,
+// B transposed), which needs a transpose.
+
+// Rows contiguous: walks K in the outer loop, so each source row is read front to back.
+template <int R>
+void pack_rows_contiguous(const float* X, int64_t ld, int64_t rows, int64_t p0, int64_t p1,
+                          int64_t k0, int64_t kc, float* dst) {
+    for (int64_t k = 0; k < kc; ++k) {
+        const float* src = X + (k0 + k) * ld;
+        for (int64_t p = p0; p < p1; ++p) {
+            const int64_t r = p * R;
+            float* d = dst + (p * kc + k) * R;
+            if (r + R <= rows) {
+                std::memcpy(d, src + r, sizeof(float) * R);  // fixed size: inlined vector moves
             } else {
-                for (int64_t k = 0; k < kc; ++k) dst[k * kMR + i] = 0.f;
+                const int64_t n = rows - r;
+                std::memcpy(d, src + r, size_t(n) * sizeof(float));
+                std::memset(d + n, 0, size_t(R - n) * sizeof(float));
             }
         }
     }
 }
 
-// Packs K block [k0, k0 + kc) x columns [c0, c0 + kNR) of op(B) as dst[k][j]; columns >= N are 0.
-void pack_b_panel(bool trans_b, const float* B, int64_t ldb, int64_t N, int64_t c0, int64_t k0,
-                  int64_t kc, float* dst) {
-    const int cols = int(std::min<int64_t>(kNR, N - c0));
-    if (trans_b) {  // op(B)(k, c) = B[c][k]
-        for (int j = 0; j < kNR; ++j) {
-            if (j < cols) {
-                const float* src = B + (c0 + j) * ldb + k0;
-                for (int64_t k = 0; k < kc; ++k) dst[k * kNR + j] = src[k];
-            } else {
-                for (int64_t k = 0; k < kc; ++k) dst[k * kNR + j] = 0.f;
-            }
-        }
-    } else {  // op(B)(k, c) = B[k][c]: a row of B holds consecutive c
-        for (int64_t k = 0; k < kc; ++k) {
-            const float* src = B + (k0 + k) * ldb + c0;
-            float* d = dst + k * kNR;
-            std::memcpy(d, src, size_t(cols) * sizeof(float));
-            for (int j = cols; j < kNR; ++j) d[j] = 0.f;
+#if defined(__AVX2__) && !defined(G2L_GEMM_GENERIC)
+// dst[j * ld_dst + i] = src[i * ld_src + j] for an 8 x 8 block; rows i >= nr read as zero and
+// only the first `nw` floats of each output row are written.
+inline void transpose8x8(const float* src, int64_t ld_src, int nr, float* dst, int64_t ld_dst,
+                         int nw) {
+    __m256 r[8];
+    for (int i = 0; i < 8; ++i) r[i] = i < nr ? _mm256_loadu_ps(src + i * ld_src) : _mm256_setzero_ps();
+    __m256 t[8], u[8];
+    for (int i = 0; i < 8; i += 2) {
+        t[i] = _mm256_unpacklo_ps(r[i], r[i + 1]);
+        t[i + 1] = _mm256_unpackhi_ps(r[i], r[i + 1]);
+    }
+    for (int i = 0; i < 8; i += 4) {
+        u[i] = _mm256_shuffle_ps(t[i], t[i + 2], _MM_SHUFFLE(1, 0, 1, 0));
+        u[i + 1] = _mm256_shuffle_ps(t[i], t[i + 2], _MM_SHUFFLE(3, 2, 3, 2));
+        u[i + 2] = _mm256_shuffle_ps(t[i + 1], t[i + 3], _MM_SHUFFLE(1, 0, 1, 0));
+        u[i + 3] = _mm256_shuffle_ps(t[i + 1], t[i + 3], _MM_SHUFFLE(3, 2, 3, 2));
+    }
+    for (int j = 0; j < 4; ++j) {
+        const __m256 lo = _mm256_permute2f128_ps(u[j], u[j + 4], 0x20);
+        const __m256 hi = _mm256_permute2f128_ps(u[j], u[j + 4], 0x31);
+        if (nw == 8) {
+            _mm256_storeu_ps(dst + j * ld_dst, lo);
+            _mm256_storeu_ps(dst + (j + 4) * ld_dst, hi);
+        } else if (nw == 4) {
+            _mm_storeu_ps(dst + j * ld_dst, _mm256_castps256_ps128(lo));
+            _mm_storeu_ps(dst + (j + 4) * ld_dst, _mm256_castps256_ps128(hi));
+        } else {
+            alignas(32) float tmp[8];
+            _mm256_store_ps(tmp, lo);
+            std::memcpy(dst + j * ld_dst, tmp, size_t(nw) * sizeof(float));
+            _mm256_store_ps(tmp, hi);
+            std::memcpy(dst + (j + 4) * ld_dst, tmp, size_t(nw) * sizeof(float));
         }
     }
+}
+#endif
+
+// K contiguous: a panel's R source rows are read together, 8 rows x 8 k at a time, and
+// transposed in registers (AVX2); scalar for the tails and on other targets.
+template <int R>
+void pack_k_contiguous(const float* X, int64_t ld, int64_t rows, int64_t p0, int64_t p1,
+                       int64_t k0, int64_t kc, float* dst) {
+    for (int64_t p = p0; p < p1; ++p) {
+        const int64_t r = p * R;
+        const int n = int(std::min<int64_t>(R, rows - r));
+        const float* src = X + r * ld + k0;
+        float* d = dst + p * kc * R;
+        int64_t k = 0;
+#if defined(__AVX2__) && !defined(G2L_GEMM_GENERIC)
+        for (; k + 8 <= kc; k += 8)
+            for (int i0 = 0; i0 < R; i0 += 8)
+                transpose8x8(src + i0 * ld + k, ld, std::max(0, std::min(8, n - i0)),
+                             d + k * R + i0, R, std::min(8, R - i0));
+#endif
+        for (; k < kc; ++k)
+            for (int i = 0; i < R; ++i) d[k * R + i] = i < n ? src[i * ld + k] : 0.f;
+    }
+}
+
+// Packs panels [p0, p1) of op(A) (R = kMR) or of op(B) seen as its transpose (R = kNR).
+template <int R>
+void pack_panels(bool rows_contiguous, const float* X, int64_t ld, int64_t rows, int64_t p0,
+                 int64_t p1, int64_t k0, int64_t kc, float* dst) {
+    if (rows_contiguous) pack_rows_contiguous<R>(X, ld, rows, p0, p1, k0, kc, dst);
+    else pack_k_contiguous<R>(X, ld, rows, p0, p1, k0, kc, dst);
+}
+
+// The share [lo, hi) of n items of thread t among nt (contiguous, equal to within one).
+void share(int64_t n, int t, int nt, int64_t* lo, int64_t* hi) {
+    *lo = n * t / nt;
+    *hi = n * (t + 1) / nt;
 }
 
 // The packing buffers of the calling thread, grown on demand, 64-byte aligned. OpenMP workers
@@ -187,12 +244,16 @@ void sgemm_packed(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, f
         const int64_t kc = std::min(kKC, K - k0);
 #pragma omp parallel if (parallel)
         {
-#pragma omp for schedule(static) nowait
-            for (int64_t p = 0; p < pm; ++p)
-                pack_a_panel(trans_a, A, lda, M, p * kMR, k0, kc, pa + p * kMR * kc);
-#pragma omp for schedule(static)
-            for (int64_t q = 0; q < pn; ++q)
-                pack_b_panel(trans_b, B, ldb, N, q * kNR, k0, kc, pb + q * kNR * kc);
+            int t = 0, nt = 1;
+#ifdef _OPENMP
+            t = omp_get_thread_num(), nt = omp_get_num_threads();
+#endif
+            int64_t lo, hi;
+            share(pm, t, nt, &lo, &hi);
+            pack_panels<kMR>(trans_a, A, lda, M, lo, hi, k0, kc, pa);
+            share(pn, t, nt, &lo, &hi);
+            pack_panels<kNR>(!trans_b, B, ldb, N, lo, hi, k0, kc, pb);
+#pragma omp barrier
 #pragma omp for schedule(dynamic)
             for (int64_t t = 0; t < tiles; ++t) {
                 const int64_t p0 = (t / tn) * tpm, p1 = std::min(pm, p0 + tpm);

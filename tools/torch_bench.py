@@ -84,6 +84,22 @@ import os
 import sys
 import time
 
+
+def _threads_from_argv(argv):
+    for i, a in enumerate(argv):
+        if a == "--threads" and i + 1 < len(argv):
+            return argv[i + 1]
+        if a.startswith("--threads="):
+            return a.split("=", 1)[1]
+    return "2"
+
+
+# torch.set_num_threads sizes LibTorch's own pool but not OpenBLAS's, which is sized from the
+# environment when the library loads (default: every core). Without this, "--threads 1" ran its
+# BLAS convolutions on 2 threads (the 2026-12-04 afternoon figure, 3.55 samples/s; 2.69 with one).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", _threads_from_argv(sys.argv))
+os.environ.setdefault("OMP_NUM_THREADS", _threads_from_argv(sys.argv))
+
 try:
     import torch
     import torch.nn as nn

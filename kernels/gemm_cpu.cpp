@@ -74,7 +74,7 @@ constexpr int kNV = 2, kNR = kNV * kVL;
 
 // Blocking: a K block of kKC keeps one packed A micro-panel (kMR x kKC) in L1 while the
 // micro-kernel walks the B micro-panels of a tile (kKC x kNC, in L2). A C tile is kMC x kNC.
-constexpr int64_t kKC = 256, kMC = 8 * kMR, kNC = 16 * kNR;
+constexpr int64_t kKC = 256, kMC = 8 * kMR, kNC = 16 * kNR, kWantTiles = 8;
 
 // acc = sum_k pa[k][0..MR) (x) pb[k][0..NR) over one K block, then C[0..m, 0..n) += alpha acc.
 // Edge tiles (m < MR or n < NR) go through a full-size buffer so that every element of C gets
@@ -234,11 +234,18 @@ void sgemm_packed(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, f
     const int64_t kc_max = std::min(K, kKC);
     float* pa = scratch(0, size_t(pm * kMR * kc_max));
     float* pb = scratch(1, size_t(pn * kNR * kc_max));
-    // Tiles of C: kMC x kNC, narrowed on a small product so that every thread has some. Each
-    // element's sum runs over the same K blocks in the same order whatever the tile, so the
-    // partition (and the thread count) never changes a bit of the result.
-    const int64_t tpm = kMC / kMR, tpn = kNC / kNR;  // micro-panels per tile
-    const int64_t tm = (pm + tpm - 1) / tpm, tn = (pn + tpn - 1) / tpn, tiles = tm * tn;
+    // Tiles of C: kMC x kNC, narrowed (width first) on a small product until there are
+    // kWantTiles of them, so that the threads' shares come out even (3 tiles on 2 threads leave
+    // one idle a third of the time: a batch-1 layer of 64 x 1500). Each element's sum runs over
+    // the same K blocks in the same order whatever the tile, so the partition (and the thread
+    // count) never changes a bit of the result.
+    int64_t tpm = kMC / kMR, tpn = kNC / kNR;  // micro-panels per tile
+    auto count = [&] { return ((pm + tpm - 1) / tpm) * ((pn + tpn - 1) / tpn); };
+    while (count() < kWantTiles && (tpn > 1 || tpm > 1)) {
+        if (tpn > 1) tpn = (tpn + 1) / 2;
+        else tpm = (tpm + 1) / 2;
+    }
+    const int64_t tn = (pn + tpn - 1) / tpn, tiles = count();
     const bool parallel = M * N * K > kParallelMacs;
     for (int64_t k0 = 0; k0 < K; k0 += kKC) {
         const int64_t kc = std::min(kKC, K - k0);

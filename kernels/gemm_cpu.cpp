@@ -37,29 +37,26 @@ constexpr int64_t kParallelMacs = int64_t(1) << 20;
 // The float micro-kernel's vector type, one set per instruction set. The register block is
 // MR rows x NR = 2 vectors of C: 24 of the 32 zmm registers on AVX-512, 12 of the 16 ymm/xmm
 // registers on AVX2 and SSE2, plus the two B vectors and one broadcast A value.
+// The x86 sets differ only in their intrinsics' prefix (and SSE2 has no FMA).
+#define G2L_GEMM_X86_OPS(P)                                               \
+    inline vec vload(const float* p) { return P##_loadu_ps(p); }          \
+    inline void vstore(float* p, vec v) { P##_storeu_ps(p, v); }          \
+    inline vec vset1(float x) { return P##_set1_ps(x); }                  \
+    inline vec vzero() { return P##_setzero_ps(); }
 #if defined(__AVX512F__) && !defined(G2L_GEMM_GENERIC)
 using vec = __m512;
 constexpr int kVL = 16, kMR = 12;
-inline vec vload(const float* p) { return _mm512_loadu_ps(p); }
-inline void vstore(float* p, vec v) { _mm512_storeu_ps(p, v); }
-inline vec vset1(float x) { return _mm512_set1_ps(x); }
-inline vec vzero() { return _mm512_setzero_ps(); }
+G2L_GEMM_X86_OPS(_mm512)
 inline vec vfma(vec a, vec b, vec c) { return _mm512_fmadd_ps(a, b, c); }
 #elif defined(__AVX2__) && defined(__FMA__) && !defined(G2L_GEMM_GENERIC)
 using vec = __m256;
 constexpr int kVL = 8, kMR = 6;
-inline vec vload(const float* p) { return _mm256_loadu_ps(p); }
-inline void vstore(float* p, vec v) { _mm256_storeu_ps(p, v); }
-inline vec vset1(float x) { return _mm256_set1_ps(x); }
-inline vec vzero() { return _mm256_setzero_ps(); }
+G2L_GEMM_X86_OPS(_mm256)
 inline vec vfma(vec a, vec b, vec c) { return _mm256_fmadd_ps(a, b, c); }
 #elif defined(__SSE2__) && !defined(G2L_GEMM_GENERIC)
 using vec = __m128;
 constexpr int kVL = 4, kMR = 6;
-inline vec vload(const float* p) { return _mm_loadu_ps(p); }
-inline void vstore(float* p, vec v) { _mm_storeu_ps(p, v); }
-inline vec vset1(float x) { return _mm_set1_ps(x); }
-inline vec vzero() { return _mm_setzero_ps(); }
+G2L_GEMM_X86_OPS(_mm)
 inline vec vfma(vec a, vec b, vec c) { return _mm_add_ps(_mm_mul_ps(a, b), c); }
 #else  // other targets (or G2L_GEMM_GENERIC, to test this path): GCC/Clang vector extensions
 typedef float vec __attribute__((vector_size(16)));
@@ -70,6 +67,7 @@ inline vec vset1(float x) { return vec{x, x, x, x}; }
 inline vec vzero() { return vec{0, 0, 0, 0}; }
 inline vec vfma(vec a, vec b, vec c) { return a * b + c; }
 #endif
+#undef G2L_GEMM_X86_OPS
 constexpr int kNV = 2, kNR = kNV * kVL;
 
 // Blocking: a K block of kKC keeps one packed A micro-panel (kMR x kKC) in L1 while the

@@ -244,7 +244,7 @@ void sgemm_packed(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, f
         else tpm = (tpm + 1) / 2;
     }
     const int64_t tn = (pn + tpn - 1) / tpn, tiles = count();
-    const bool parallel = M * N * K > kParallelMacs;
+    [[maybe_unused]] const bool parallel = M * N * K > kParallelMacs;
     for (int64_t k0 = 0; k0 < K; k0 += kKC) {
         const int64_t kc = std::min(kKC, K - k0);
 #pragma omp parallel if (parallel)
@@ -312,7 +312,7 @@ void dgemm_tiled(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, do
     (void)single;
     const int64_t tm = (M + kTileM - 1) / kTileM, tn = (N + kTileN - 1) / kTileN;
     const int64_t tiles = tm * tn;
-    const bool parallel = tiles > 1 && M * N * K > kParallelMacs;
+    [[maybe_unused]] const bool parallel = tiles > 1 && M * N * K > kParallelMacs;
 #pragma omp parallel for schedule(dynamic) if (parallel)
     for (int64_t t = 0; t < tiles; ++t) {
         const int64_t i0 = (t / tn) * kTileM, j0 = (t % tn) * kTileN;

@@ -260,9 +260,9 @@ void sgemm_packed(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, f
             pack_panels<kNR>(!trans_b, B, ldb, N, lo, hi, k0, kc, pb);
 #pragma omp barrier
 #pragma omp for schedule(dynamic)
-            for (int64_t t = 0; t < tiles; ++t) {
-                const int64_t p0 = (t / tn) * tpm, p1 = std::min(pm, p0 + tpm);
-                const int64_t q0 = (t % tn) * tpn, q1 = std::min(pn, q0 + tpn);
+            for (int64_t tile = 0; tile < tiles; ++tile) {
+                const int64_t p0 = (tile / tn) * tpm, p1 = std::min(pm, p0 + tpm);
+                const int64_t q0 = (tile % tn) * tpn, q1 = std::min(pn, q0 + tpn);
                 for (int64_t p = p0; p < p1; ++p) {
                     const int64_t r0 = p * kMR;
                     const int m = int(std::min<int64_t>(kMR, M - r0));

@@ -2,7 +2,7 @@
 // Dense GEMM on row-major matrices: C = alpha * op(A) * op(B) + beta * C.
 // op(A) is [M, K] (A stored [M, K] with lda, or [K, M] when trans_a), op(B) is [K, N], C [M, N].
 // float: our packed GEMM (an MR x NR register-blocked micro-kernel for AVX-512, AVX2, SSE2 or
-// any other target; K blocks of 256); double: Eigen's GEBP on 512 x 512 tiles of C. Both spread
+// any other target; K blocks of 384); double: Eigen's GEBP on 512 x 512 tiles of C. Both spread
 // over OpenMP threads and give bitwise identical results for any thread count (gemm_cpu.cpp).
 #pragma once
 

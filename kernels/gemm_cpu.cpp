@@ -72,7 +72,7 @@ constexpr int kNV = 2, kNR = kNV * kVL;
 
 // Blocking: a K block of kKC keeps one packed A micro-panel (kMR x kKC) in L1 while the
 // micro-kernel walks the B micro-panels of a tile (kKC x kNC, in L2). A C tile is kMC x kNC.
-constexpr int64_t kKC = 256, kMC = 8 * kMR, kNC = 16 * kNR, kWantTiles = 8;
+constexpr int64_t kKC = 384, kMC = 8 * kMR, kNC = 16 * kNR, kWantTiles = 8;
 
 // acc = sum_k pa[k][0..MR) (x) pb[k][0..NR) over one K block, then C[0..m, 0..n) += alpha acc.
 // Edge tiles (m < MR or n < NR) go through a full-size buffer so that every element of C gets

@@ -2,7 +2,7 @@
 // gemm_cpu against a plain double-precision reference, for every transpose combination, with
 // leading dimensions larger than the rows, alpha and beta, on shapes that span several C tiles
 // and K blocks with partial micro-panels at every edge (float: 12 or 6 rows x 2 vectors, K blocks
-// of 256; double: 512 x 512 tiles); and 1 vs 2 threads bitwise.
+// of 384; double: 512 x 512 tiles); and 1 vs 2 threads bitwise.
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstring>
@@ -72,7 +72,7 @@ TEST_CASE("gemm_cpu matches a double reference across tiles, K blocks and partia
     for (bool ta : {false, true})
         for (bool tb : {false, true}) {
             check_shape<float>(ta, tb, 1100, 1030, 70, 2e-5);   // many tiles, partial edges
-            check_shape<float>(ta, tb, 37, 45, 530, 4e-5);      // 3 K blocks, the last partial
+            check_shape<float>(ta, tb, 37, 45, 900, 6e-5);      // 3 K blocks, the last partial
             check_shape<double>(ta, tb, 530, 1025, 33, 1e-12);
         }
     check_shape<float>(false, false, 1, 1, 1, 1e-6);
@@ -83,8 +83,8 @@ TEST_CASE("gemm_cpu: 1 and 2 threads give bitwise identical results", "[kernels]
 #ifndef _OPENMP
     testing::mark_skipped("built without OpenMP: one thread count only");
 #else
-    // A big product (many tiles, several K blocks), batch-1 layer shapes (a few tiles, one or
-    // five K blocks), a product smaller than one tile; beta 0 and beta != 0.
+    // A big product (many tiles), batch-1 layer shapes (a few tiles, one or three K blocks), a
+    // product smaller than one tile; beta 0 and beta != 0.
     struct Case { int64_t M, N, K; float beta; };
     for (const Case c : {Case{1100, 700, 300, 0.f}, Case{1100, 700, 300, 0.5f},
                          Case{1024, 1000, 128, 0.f}, Case{256, 1000, 1152, 0.5f},

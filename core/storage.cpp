@@ -27,6 +27,7 @@ namespace {
 std::atomic<int64_t> g_cpu_bytes{0};
 constexpr size_t kAlign = 64;
 constexpr size_t kCacheMin = size_t(256) << 10;  // smaller blocks: malloc's own free lists
+constexpr size_t kPage = 4096;                     // cached blocks are whole pages
 
 size_t round_up(size_t n, size_t to) { return ((n + to - 1) / to) * to; }
 
@@ -137,7 +138,7 @@ Storage::Storage(size_t nbytes, Device device) : nbytes_(nbytes), device_(device
         // aligned_alloc needs a size that is a multiple of the alignment (and > 0).
         capacity_ = std::max(round_up(nbytes, kAlign), kAlign);
         if (capacity_ >= kCacheMin) {
-            capacity_ = round_up(capacity_, 4096);
+            capacity_ = round_up(capacity_, kPage);
             data_ = cache().take(capacity_, &capacity_);
         }
         if (!data_) data_ = std::aligned_alloc(kAlign, capacity_);

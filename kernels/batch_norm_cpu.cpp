@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "kernels/batch_norm.h"
 
-#include "kernels/lanes.h"
+#include "kernels/cpu_util.h"
 
 namespace g2l::kernels {
 

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "kernels/bias.h"
 
-#include "kernels/lanes.h"
+#include "kernels/cpu_util.h"
 
 namespace g2l::kernels {
 

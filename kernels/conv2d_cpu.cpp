@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <vector>
 
+#include "kernels/cpu_util.h"
+
 namespace g2l::kernels {
 
 namespace {
@@ -25,8 +27,6 @@ constexpr int64_t kFwdColBytes = 512 * 1024;       // forward im2col tile (stays
 constexpr int64_t kBwdColBytes = 16 * 1024 * 1024;  // backward im2col / dcol slab
 constexpr int64_t kRowBlock = 32;                   // dw tiles: rows (output channels)
 constexpr int64_t kColBlock = 256;                  // dw tiles: columns; dcol GEMM column tiles
-
-int64_t ceil_div(int64_t a, int64_t b) { return (a + b - 1) / b; }
 
 // Columns per tile when a column of the im2col matrix holds `rows` values of `tsize` bytes.
 int64_t tile_cols(int64_t budget, int64_t rows, int64_t tsize, int64_t P) {

@@ -9,12 +9,14 @@
 #include <cstdlib>
 #include <cstring>
 #include <memory>
+#include <type_traits>
 
 #if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__)) || defined(__SSE2__)
 #include <immintrin.h>
 #endif
 
 #include "core/error.h"
+#include "kernels/cpu_util.h"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -228,7 +230,7 @@ float* scratch(int which, size_t floats) {
 void sgemm_packed(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, float alpha,
                   const float* A, int64_t lda, const float* B, int64_t ldb, float* C,
                   int64_t ldc) {
-    const int64_t pm = (M + kMR - 1) / kMR, pn = (N + kNR - 1) / kNR;  // micro-panels
+    const int64_t pm = ceil_div(M, kMR), pn = ceil_div(N, kNR);  // micro-panels
     const int64_t kc_max = std::min(K, kKC);
     float* pa = scratch(0, size_t(pm * kMR * kc_max));
     float* pb = scratch(1, size_t(pn * kNR * kc_max));
@@ -238,12 +240,12 @@ void sgemm_packed(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, f
     // the same K blocks in the same order whatever the tile, so the partition (and the thread
     // count) never changes a bit of the result.
     int64_t tpm = kMC / kMR, tpn = kNC / kNR;  // micro-panels per tile
-    auto count = [&] { return ((pm + tpm - 1) / tpm) * ((pn + tpn - 1) / tpn); };
+    auto count = [&] { return ceil_div(pm, tpm) * ceil_div(pn, tpn); };
     while (count() < kWantTiles && (tpn > 1 || tpm > 1)) {
         if (tpn > 1) tpn = (tpn + 1) / 2;
         else tpm = (tpm + 1) / 2;
     }
-    const int64_t tn = (pn + tpn - 1) / tpn, tiles = count();
+    const int64_t tn = ceil_div(pn, tpn), tiles = count();
     [[maybe_unused]] const bool parallel = M * N * K > kParallelMacs;
     for (int64_t k0 = 0; k0 < K; k0 += kKC) {
         const int64_t kc = std::min(kKC, K - k0);
@@ -310,8 +312,7 @@ void dgemm_tiled(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, do
                  int64_t ldc) {
     static const bool single = [] { Eigen::setNbThreads(1); return true; }();
     (void)single;
-    const int64_t tm = (M + kTileM - 1) / kTileM, tn = (N + kTileN - 1) / kTileN;
-    const int64_t tiles = tm * tn;
+    const int64_t tn = ceil_div(N, kTileN), tiles = ceil_div(M, kTileM) * tn;
     [[maybe_unused]] const bool parallel = tiles > 1 && M * N * K > kParallelMacs;
 #pragma omp parallel for schedule(dynamic) if (parallel)
     for (int64_t t = 0; t < tiles; ++t) {
@@ -321,14 +322,6 @@ void dgemm_tiled(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, do
     }
 }
 
-void gemm_impl(bool ta, bool tb, int64_t M, int64_t N, int64_t K, float alpha, const float* A,
-               int64_t lda, const float* B, int64_t ldb, float* C, int64_t ldc) {
-    sgemm_packed(ta, tb, M, N, K, alpha, A, lda, B, ldb, C, ldc);
-}
-void gemm_impl(bool ta, bool tb, int64_t M, int64_t N, int64_t K, double alpha, const double* A,
-               int64_t lda, const double* B, int64_t ldb, double* C, int64_t ldc) {
-    dgemm_tiled(ta, tb, M, N, K, alpha, A, lda, B, ldb, C, ldc);
-}
 }  // namespace
 
 template <class T>
@@ -338,7 +331,10 @@ void gemm_cpu(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, T alp
     if (beta == T(0)) c.setZero();
     else if (beta != T(1)) c *= beta;
     if (M == 0 || N == 0 || K == 0) return;
-    gemm_impl(trans_a, trans_b, M, N, K, alpha, A, lda, B, ldb, C, ldc);
+    if constexpr (std::is_same_v<T, float>)
+        sgemm_packed(trans_a, trans_b, M, N, K, alpha, A, lda, B, ldb, C, ldc);
+    else
+        dgemm_tiled(trans_a, trans_b, M, N, K, alpha, A, lda, B, ldb, C, ldc);
 }
 
 template void gemm_cpu<float>(bool, bool, int64_t, int64_t, int64_t, float, const float*,

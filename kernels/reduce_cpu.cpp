@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include "core/error.h"
+#include "kernels/cpu_util.h"
 
 namespace g2l::kernels {
 
@@ -15,8 +16,6 @@ constexpr int64_t kParallelMin = 32768;
 constexpr int64_t kChunk =
     2048;  // rows of D per partial sum (fixed: part of the result's definition)
 constexpr int64_t kBlock = 256;  // inner elements handled together (stack accumulators)
-
-int64_t ceil_div(int64_t a, int64_t b) { return (a + b - 1) / b; }
 
 }  // namespace
 

@@ -97,8 +97,8 @@ def _threads_from_argv(argv):
 # torch.set_num_threads sizes LibTorch's own pool but not OpenBLAS's, which is sized from the
 # environment when the library loads (default: every core). Without this, "--threads 1" ran its
 # BLAS convolutions on 2 threads (the 2026-12-04 afternoon figure, 3.55 samples/s; 2.69 with one).
-os.environ.setdefault("OPENBLAS_NUM_THREADS", _threads_from_argv(sys.argv))
-os.environ.setdefault("OMP_NUM_THREADS", _threads_from_argv(sys.argv))
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
+    os.environ.setdefault(_var, _threads_from_argv(sys.argv))
 
 try:
     import torch

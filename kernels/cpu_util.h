@@ -1,14 +1,18 @@
 // SPDX-License-Identifier: MIT
-// Sums over a row in kLanes independent accumulators, added up in a fixed order at the end.
-// A plain `s += x[i]` is one dependency chain (one add latency, ~4 cycles, per element) that the
-// compiler may not reorder; kLanes chains vectorize. The order depends on the row length only,
-// so results stay bitwise the same for any thread count.
+// Small helpers shared by the CPU kernels.
 #pragma once
 
 #include <cstdint>
 
 namespace g2l::kernels {
 
+/// ceil(a / b) for a >= 0, b > 0.
+inline int64_t ceil_div(int64_t a, int64_t b) { return (a + b - 1) / b; }
+
+/// Sums over a row in kLanes independent accumulators, added up in a fixed order at the end.
+/// A plain `s += x[i]` is one dependency chain (one add latency, ~4 cycles, per element) that
+/// the compiler may not reorder; kLanes chains vectorize. The order depends on the row length
+/// only, so results stay bitwise the same for any thread count.
 constexpr int kLanes = 16;
 
 template <class Acc>

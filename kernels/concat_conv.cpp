@@ -18,21 +18,19 @@ void concat_conv1x1_fwd_cpu(const std::vector<Tensor>& xs, const std::vector<Ten
     const int64_t B = y.size(0), Cout = y.size(1), N = y.size(2), Ctot = w.size(1);
     const T* pw = w.data<T>();
     T* py = y.data<T>();
-    for (int64_t bi = 0; bi < B; ++bi) {
-        int64_t off = 0;
-        for (size_t i = 0; i < xs.size(); ++i) {  // y[b] (+)= W_i x_i[b]: [Cout, Ci] x [Ci, N]
-            const int64_t Ci = xs[i].size(1);
-            gemm_cpu<T>(false, false, Cout, N, Ci, T(1), pw + off, Ctot,
-                        xs[i].data<T>() + bi * Ci * N, N, i ? T(1) : T(0), py + bi * Cout * N, N);
-            off += Ci;
-        }
+    int64_t off = 0;
+    for (size_t i = 0; i < xs.size(); ++i) {  // y[b] (+)= W_i x_i[b]: [Cout, Ci] x [Ci, N]
+        const int64_t Ci = xs[i].size(1);
+        gemm_batched_cpu<T>(false, false, Cout, N, Ci, T(1), pw + off, Ctot, xs[i].data<T>(), N,
+                            Ci * N, i ? T(1) : T(0), py, N, Cout * N, B);
+        off += Ci;
     }
     if (gs.empty() && !b.defined()) return;
     // v[b, o] = bias[o] + sum_j (g_j W_j^T)[b, o]: [B, Cj] x [Cj, Cout] per global block.
     Tensor v = Tensor::zeros({B, Cout}, y.dtype(), y.device());
     T* pv = v.data<T>();
     if (b.defined()) add_bias_bcn_cpu<T>(pv, b.data<T>(), B, Cout, 1);
-    int64_t off = Ctot;
+    off = Ctot;
     for (const Tensor& g : gs) off -= g.size(1);
     for (const Tensor& g : gs) {
         const int64_t Cj = g.size(1);
@@ -67,9 +65,8 @@ void concat_conv1x1_bwd_cpu(const std::vector<Tensor>& xs, const std::vector<Ten
         const int64_t Ci = xs[i].size(1);
         const T* px = xs[i].data<T>();
         if (dxs[i].defined())  // dx_i[b] = W_i^T dy[b]: [Ci, Cout] x [Cout, N]
-            for (int64_t bi = 0; bi < B; ++bi)
-                gemm_cpu<T>(true, false, Ci, N, Cout, T(1), pw + off, Ctot, pdy + bi * Cout * N,
-                            N, T(0), dxs[i].data<T>() + bi * Ci * N, N);
+            gemm_batched_cpu<T>(true, false, Ci, N, Cout, T(1), pw + off, Ctot, pdy, N, Cout * N,
+                                T(0), dxs[i].data<T>(), N, Ci * N, B);
         if (want_w)  // dW_i = sum_b dy[b] x_i[b]^T, batches summed in a fixed order
             for (int64_t bi = 0; bi < B; ++bi)
                 gemm_cpu<T>(false, true, Cout, Ci, N, T(1), pdy + bi * Cout * N, N,

@@ -76,11 +76,12 @@ constexpr int kNV = 2, kNR = kNV * kVL;
 // micro-kernel walks the B micro-panels of a tile (kKC x kNC, in L2). A C tile is kMC x kNC.
 constexpr int64_t kKC = 384, kMC = 8 * kMR, kNC = 16 * kNR, kWantTiles = 8;
 
-// acc = sum_k pa[k][0..MR) (x) pb[k][0..NR) over one K block, then C[0..m, 0..n) += alpha acc.
+// acc = sum_k pa[k][0..MR) (x) pb[k][0..NR) over one K block, then C[0..m, 0..n) += alpha acc
+// (= alpha acc + 0 when `overwrite`: C is not read, and its value is the same as on a zeroed C).
 // Edge tiles (m < MR or n < NR) go through a full-size buffer so that every element of C gets
 // the same arithmetic wherever it lies: the result does not depend on how C is partitioned.
 void micro_kernel(int64_t kc, const float* pa, const float* pb, float alpha, float* c,
-                  int64_t ldc, int m, int n) {
+                  int64_t ldc, int m, int n, bool overwrite) {
     vec acc[kMR][kNV];
     for (int i = 0; i < kMR; ++i)
         for (int j = 0; j < kNV; ++j) acc[i][j] = vzero();
@@ -97,12 +98,15 @@ void micro_kernel(int64_t kc, const float* pa, const float* pb, float alpha, flo
     const vec va = vset1(alpha);
     if (m == kMR && n == kNR) {
         for (int i = 0; i < kMR; ++i)
-            for (int j = 0; j < kNV; ++j)
-                vstore(c + i * ldc + j * kVL, vfma(va, acc[i][j], vload(c + i * ldc + j * kVL)));
+            for (int j = 0; j < kNV; ++j) {
+                float* d = c + i * ldc + j * kVL;
+                vstore(d, vfma(va, acc[i][j], overwrite ? vzero() : vload(d)));
+            }
         return;
     }
     alignas(64) float buf[kMR * kNR] = {};
-    for (int i = 0; i < m; ++i) std::memcpy(buf + i * kNR, c + i * ldc, size_t(n) * sizeof(float));
+    if (!overwrite)
+        for (int i = 0; i < m; ++i) std::memcpy(buf + i * kNR, c + i * ldc, size_t(n) * sizeof(float));
     for (int i = 0; i < kMR; ++i)
         for (int j = 0; j < kNV; ++j)
             vstore(buf + i * kNR + j * kVL, vfma(va, acc[i][j], vload(buf + i * kNR + j * kVL)));
@@ -209,8 +213,9 @@ void share(int64_t n, int t, int nt, int64_t* lo, int64_t* hi) {
     *hi = n * (t + 1) / nt;
 }
 
-// The packing buffers of the calling thread, grown on demand, 64-byte aligned. OpenMP workers
-// read the caller's buffers; two user threads calling gemm at once each have their own.
+// The packing buffers of the calling thread, grown on demand, 64-byte aligned. In sgemm_packed
+// the OpenMP workers share the caller's buffers; in sgemm_prepacked each thread packs into its
+// own; two user threads calling gemm at once each have their own.
 float* scratch(int which, size_t floats) {
     struct Buf {
         std::unique_ptr<float, decltype(&std::free)> p{nullptr, &std::free};
@@ -227,52 +232,112 @@ float* scratch(int which, size_t floats) {
     return b.p.get();
 }
 
-void sgemm_packed(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, float alpha,
-                  const float* A, int64_t lda, const float* B, int64_t ldb, float* C,
-                  int64_t ldc) {
+// One float product (or a batch of them sharing op(A)):
+//   C_b = alpha op(A) op(B_b) (+ C_b unless `overwrite`) for b < batch, X_b = X + b * stride_x,
+// then the epilogue on each finished tile (bias, ReLU; while the tile is in cache).
+struct Sgemm {
+    bool trans_a = false, trans_b = false;
+    int64_t M = 0, N = 0, K = 0;
+    float alpha = 1.f;
+    const float* A = nullptr;
+    int64_t lda = 0;
+    const float* prepacked = nullptr;  // op(A) already in panels (sgemm_prepacked only)
+    const float* B = nullptr;
+    int64_t ldb = 0, stride_b = 0;
+    float* C = nullptr;
+    int64_t ldc = 0, stride_c = 0;
+    int64_t batch = 1;
+    bool overwrite = false;  // beta == 0: the first K block stores instead of adding to C
+    const GemmEpilogue* ep = nullptr;
+};
+
+// Packed B of a group of batch items up to this size: the group's panels are shared out in
+// one barrier, and stay in the last-level cache.
+constexpr int64_t kBatchPackFloats = int64_t(2) << 20;
+
+// The epilogue on C rows [r0, r1) x columns [c0, c1).
+void apply_epilogue(const GemmEpilogue& ep, int64_t M, float* C, int64_t ldc, int64_t r0,
+                    int64_t r1, int64_t c0, int64_t c1) {
+    const int64_t segs = ep.segments ? ep.num_segments : 1;
+    for (int64_t s = 0; s < segs; ++s) {
+        const int64_t a = ep.segments ? std::max(c0, ep.segments[s]) : c0;
+        const int64_t z = ep.segments ? std::min(c1, ep.segments[s + 1]) : c1;
+        if (a >= z) continue;
+        for (int64_t r = r0; r < r1; ++r) {
+            float* row = C + r * ldc;
+            const float b = ep.bias ? ep.bias[s * M + r] : 0.f;
+            if (ep.relu)
+                for (int64_t n = a; n < z; ++n) row[n] = std::max(row[n] + b, 0.f);
+            else
+                for (int64_t n = a; n < z; ++n) row[n] += b;
+        }
+    }
+}
+
+void sgemm_packed(const Sgemm& g) {
+    const int64_t M = g.M, N = g.N, K = g.K;
     const int64_t pm = ceil_div(M, kMR), pn = ceil_div(N, kNR);  // micro-panels
     const int64_t kc_max = std::min(K, kKC);
+    const int64_t group = std::clamp<int64_t>(kBatchPackFloats / (pn * kNR * kc_max), 1, g.batch);
     float* pa = scratch(0, size_t(pm * kMR * kc_max));
-    float* pb = scratch(1, size_t(pn * kNR * kc_max));
+    float* pb = scratch(1, size_t(group * pn * kNR * kc_max));
     // Tiles of C: kMC x kNC, narrowed (width first) on a small product until there are
-    // kWantTiles of them, so that the threads' shares come out even (3 tiles on 2 threads leave
-    // one idle a third of the time: a batch-1 layer of 64 x 1500). Each element's sum runs over
-    // the same K blocks in the same order whatever the tile, so the partition (and the thread
-    // count) never changes a bit of the result.
+    // kWantTiles of them per batch group, so that the threads' shares come out even (3 tiles on
+    // 2 threads leave one idle a third of the time: a batch-1 layer of 64 x 1500). Each
+    // element's sum runs over the same K blocks in the same order whatever the tile, so the
+    // partition (and the thread count) never changes a bit of the result.
     int64_t tpm = kMC / kMR, tpn = kNC / kNR;  // micro-panels per tile
-    auto count = [&] { return ceil_div(pm, tpm) * ceil_div(pn, tpn); };
+    auto count = [&] { return ceil_div(pm, tpm) * ceil_div(pn, tpn) * group; };
     while (count() < kWantTiles && (tpn > 1 || tpm > 1)) {
         if (tpn > 1) tpn = (tpn + 1) / 2;
         else tpm = (tpm + 1) / 2;
     }
-    const int64_t tn = ceil_div(pn, tpn), tiles = count();
-    [[maybe_unused]] const bool parallel = M * N * K > kParallelMacs;
-    for (int64_t k0 = 0; k0 < K; k0 += kKC) {
-        const int64_t kc = std::min(kKC, K - k0);
+    const int64_t tn = ceil_div(pn, tpn), tiles = ceil_div(pm, tpm) * tn;
+    [[maybe_unused]] const bool parallel = M * N * K * g.batch > kParallelMacs;
 #pragma omp parallel if (parallel)
-        {
-            int t = 0, nt = 1;
+    {
+        int t = 0, nt = 1;
 #ifdef _OPENMP
-            t = omp_get_thread_num(), nt = omp_get_num_threads();
+        t = omp_get_thread_num(), nt = omp_get_num_threads();
 #endif
+        for (int64_t k0 = 0; k0 < K; k0 += kKC) {
+            const int64_t kc = std::min(kKC, K - k0);
+            const bool first = k0 == 0 && g.overwrite, last = k0 + kc >= K;
             int64_t lo, hi;
             share(pm, t, nt, &lo, &hi);
-            pack_panels<kMR>(trans_a, A, lda, M, lo, hi, k0, kc, pa);
-            share(pn, t, nt, &lo, &hi);
-            pack_panels<kNR>(!trans_b, B, ldb, N, lo, hi, k0, kc, pb);
+            pack_panels<kMR>(g.trans_a, g.A, g.lda, M, lo, hi, k0, kc, pa);
+            for (int64_t b0 = 0; b0 < g.batch; b0 += group) {
+                const int64_t nb = std::min(group, g.batch - b0);
+                // This thread's share of the group's nb * pn panels, item by item.
+                share(nb * pn, t, nt, &lo, &hi);
+                for (int64_t i = b0; i < b0 + nb; ++i) {
+                    const int64_t base = (i - b0) * pn;
+                    const int64_t q0 = std::max(lo, base) - base, q1 = std::min(hi, base + pn) - base;
+                    if (q0 < q1)
+                        pack_panels<kNR>(!g.trans_b, g.B + i * g.stride_b, g.ldb, N, q0, q1, k0,
+                                         kc, pb + base * kNR * kc);
+                }
 #pragma omp barrier
 #pragma omp for schedule(dynamic)
-            for (int64_t tile = 0; tile < tiles; ++tile) {
-                const int64_t p0 = (tile / tn) * tpm, p1 = std::min(pm, p0 + tpm);
-                const int64_t q0 = (tile % tn) * tpn, q1 = std::min(pn, q0 + tpn);
-                for (int64_t p = p0; p < p1; ++p) {
-                    const int64_t r0 = p * kMR;
-                    const int m = int(std::min<int64_t>(kMR, M - r0));
-                    for (int64_t q = q0; q < q1; ++q) {
-                        const int64_t c0 = q * kNR;
-                        micro_kernel(kc, pa + p * kMR * kc, pb + q * kNR * kc, alpha,
-                                     C + r0 * ldc + c0, ldc, m, int(std::min<int64_t>(kNR, N - c0)));
+                for (int64_t job = 0; job < nb * tiles; ++job) {
+                    const int64_t i = job / tiles, tile = job % tiles;
+                    float* C = g.C + (b0 + i) * g.stride_c;
+                    const float* pbi = pb + i * pn * kNR * kc;
+                    const int64_t p0 = (tile / tn) * tpm, p1 = std::min(pm, p0 + tpm);
+                    const int64_t q0 = (tile % tn) * tpn, q1 = std::min(pn, q0 + tpn);
+                    for (int64_t p = p0; p < p1; ++p) {
+                        const int64_t r0 = p * kMR;
+                        const int m = int(std::min<int64_t>(kMR, M - r0));
+                        for (int64_t q = q0; q < q1; ++q) {
+                            const int64_t c0 = q * kNR;
+                            micro_kernel(kc, pa + p * kMR * kc, pbi + q * kNR * kc, g.alpha,
+                                         C + r0 * g.ldc + c0, g.ldc, m,
+                                         int(std::min<int64_t>(kNR, N - c0)), first);
+                        }
                     }
+                    if (last && g.ep)
+                        apply_epilogue(*g.ep, M, C, g.ldc, p0 * kMR, std::min(M, p1 * kMR),
+                                       q0 * kNR, std::min(N, q1 * kNR));
                 }
             }
         }
@@ -327,19 +392,112 @@ void dgemm_tiled(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, do
 template <class T>
 void gemm_cpu(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, T alpha, const T* A,
               int64_t lda, const T* B, int64_t ldb, T beta, T* C, int64_t ldc) {
-    MMap<T> c(C, M, N, Eigen::OuterStride<>(ldc));
-    if (beta == T(0)) c.setZero();
-    else if (beta != T(1)) c *= beta;
-    if (M == 0 || N == 0 || K == 0) return;
-    if constexpr (std::is_same_v<T, float>)
-        sgemm_packed(trans_a, trans_b, M, N, K, alpha, A, lda, B, ldb, C, ldc);
-    else
-        dgemm_tiled(trans_a, trans_b, M, N, K, alpha, A, lda, B, ldb, C, ldc);
+    gemm_batched_cpu<T>(trans_a, trans_b, M, N, K, alpha, A, lda, B, ldb, 0, beta, C, ldc, 0, 1);
+}
+
+template <class T>
+void gemm_batched_cpu(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, T alpha,
+                      const T* A, int64_t lda, const T* B, int64_t ldb, int64_t stride_b, T beta,
+                      T* C, int64_t ldc, int64_t stride_c, int64_t batch,
+                      const GemmEpilogue* epilogue) {
+    if (M == 0 || N == 0 || batch == 0) return;
+    if constexpr (std::is_same_v<T, float>) {
+        if (beta != 0.f && beta != 1.f)
+            for (int64_t b = 0; b < batch; ++b)
+                MMap<T>(C + b * stride_c, M, N, Eigen::OuterStride<>(ldc)) *= beta;
+        if (K == 0) {  // no product: C = beta C (then the epilogue)
+            for (int64_t b = 0; b < batch; ++b) {
+                if (beta == 0.f) MMap<T>(C + b * stride_c, M, N, Eigen::OuterStride<>(ldc)).setZero();
+                if (epilogue) apply_epilogue(*epilogue, M, C + b * stride_c, ldc, 0, M, 0, N);
+            }
+            return;
+        }
+        Sgemm g;
+        g.trans_a = trans_a, g.trans_b = trans_b, g.M = M, g.N = N, g.K = K, g.alpha = alpha;
+        g.A = A, g.lda = lda, g.B = B, g.ldb = ldb, g.stride_b = stride_b;
+        g.C = C, g.ldc = ldc, g.stride_c = stride_c, g.batch = batch;
+        g.overwrite = beta == 0.f, g.ep = epilogue;
+        sgemm_packed(g);
+    } else {
+        G2L_CHECK(epilogue == nullptr, "gemm_batched_cpu: the epilogue is float-only");
+        for (int64_t b = 0; b < batch; ++b) {
+            T* Cb = C + b * stride_c;
+            MMap<T> c(Cb, M, N, Eigen::OuterStride<>(ldc));
+            if (beta == T(0)) c.setZero();
+            else if (beta != T(1)) c *= beta;
+            if (K > 0) dgemm_tiled(trans_a, trans_b, M, N, K, alpha, A, lda, B + b * stride_b, ldb, Cb, ldc);
+        }
+    }
+}
+
+// C = op(A) B with op(A) packed beforehand (PackedGemmA): each thread takes its own columns
+// of C (whole micro-panels), packs its own panels of B and runs every row of A over them, so no
+// thread ever waits for another between K blocks. A thread's columns go in chunks of kNC (their
+// packed B stays in L2); each row panel gets the epilogue once its last K block is done.
+void sgemm_prepacked(const Sgemm& g) {
+    const int64_t M = g.M, N = g.N, K = g.K;
+    const int64_t pm = ceil_div(M, kMR), pn = ceil_div(N, kNR), tpn = kNC / kNR;
+    [[maybe_unused]] const bool parallel = M * N * K > kParallelMacs;
+#pragma omp parallel if (parallel)
+    {
+        int t = 0, nt = 1;
+#ifdef _OPENMP
+        t = omp_get_thread_num(), nt = omp_get_num_threads();
+#endif
+        int64_t lo, hi;
+        share(pn, t, nt, &lo, &hi);
+        float* pb = scratch(1, size_t(std::min(tpn, hi - lo) * kNR * std::min(K, kKC)));
+        for (int64_t q0 = lo; q0 < hi; q0 += tpn) {
+            const int64_t q1 = std::min(hi, q0 + tpn), c0 = q0 * kNR, c1 = std::min(N, q1 * kNR);
+            for (int64_t k0 = 0; k0 < K; k0 += kKC) {
+                const int64_t kc = std::min(kKC, K - k0);
+                const bool first = k0 == 0, last = k0 + kc >= K;
+                pack_panels<kNR>(true, g.B + c0, g.ldb, c1 - c0, 0, q1 - q0, k0, kc, pb);
+                const float* pak = g.prepacked + pm * kMR * k0;
+                for (int64_t p = 0; p < pm; ++p) {
+                    const int64_t r0 = p * kMR;
+                    const int m = int(std::min<int64_t>(kMR, M - r0));
+                    for (int64_t q = q0; q < q1; ++q)
+                        micro_kernel(kc, pak + p * kMR * kc, pb + (q - q0) * kNR * kc, 1.f,
+                                     g.C + r0 * g.ldc + q * kNR, g.ldc, m,
+                                     int(std::min<int64_t>(kNR, N - q * kNR)), first);
+                    if (last && g.ep) apply_epilogue(*g.ep, M, g.C, g.ldc, r0, r0 + m, c0, c1);
+                }
+            }
+        }
+    }
+}
+
+PackedGemmA::PackedGemmA(bool trans_a, int64_t M, int64_t K, const float* A, int64_t lda)
+    : M_(M), K_(K) {
+    G2L_CHECK(M > 0 && K > 0, "PackedGemmA: an empty matrix (", M, " x ", K, ")");
+    const int64_t pm = ceil_div(M, kMR);
+    data_.resize(size_t(pm * kMR * K));
+    for (int64_t k0 = 0; k0 < K; k0 += kKC)  // K block k0 at pm * kMR * k0, as sgemm_packed reads it
+        pack_panels<kMR>(trans_a, A, lda, M, 0, pm, k0, std::min(kKC, K - k0),
+                         data_.data() + pm * kMR * k0);
+}
+
+void gemm_packed_a_cpu(const PackedGemmA& a, int64_t N, const float* B, int64_t ldb, float* C,
+                       int64_t ldc, const GemmEpilogue* epilogue) {
+    G2L_CHECK(!a.empty(), "gemm_packed_a_cpu: an empty PackedGemmA");
+    if (N == 0) return;
+    Sgemm g;
+    g.M = a.rows(), g.N = N, g.K = a.cols(), g.prepacked = a.data_.data();
+    g.B = B, g.ldb = ldb, g.C = C, g.ldc = ldc, g.overwrite = true, g.ep = epilogue;
+    sgemm_prepacked(g);
 }
 
 template void gemm_cpu<float>(bool, bool, int64_t, int64_t, int64_t, float, const float*,
                               int64_t, const float*, int64_t, float, float*, int64_t);
 template void gemm_cpu<double>(bool, bool, int64_t, int64_t, int64_t, double, const double*,
                                int64_t, const double*, int64_t, double, double*, int64_t);
+template void gemm_batched_cpu<float>(bool, bool, int64_t, int64_t, int64_t, float, const float*,
+                                      int64_t, const float*, int64_t, int64_t, float, float*,
+                                      int64_t, int64_t, int64_t, const GemmEpilogue*);
+template void gemm_batched_cpu<double>(bool, bool, int64_t, int64_t, int64_t, double,
+                                       const double*, int64_t, const double*, int64_t, int64_t,
+                                       double, double*, int64_t, int64_t, int64_t,
+                                       const GemmEpilogue*);
 
 }  // namespace g2l::kernels

@@ -3,6 +3,8 @@
 // kernels (gemm_cpu.cpp, bias_cpu.cpp).
 #include "kernels/linear.h"
 
+#include <type_traits>
+
 #include "kernels/bias.h"
 #include "kernels/dispatch.h"
 #include "kernels/gemm.h"
@@ -43,10 +45,14 @@ void conv1x1_fwd(const Tensor& x, const Tensor& w, const Tensor& b, Tensor& y) {
     const int64_t B = x.size(0), Cin = x.size(1), N = x.size(2), Cout = w.size(0);
     dispatch("conv1x1", {&x, &w, &b, &y}, [&](auto tag) {
         using T = decltype(tag);
-        for (int64_t bi = 0; bi < B; ++bi)  // y[b] = w x[b]: [Cout, Cin] x [Cin, N]
-            gemm_cpu<T>(false, false, Cout, N, Cin, T(1), w.data<T>(), Cin,
-                        x.data<T>() + bi * Cin * N, N, T(0), y.data<T>() + bi * Cout * N, N);
-        if (b.defined()) add_bias_bcn_cpu<T>(y.data<T>(), b.data<T>(), B, Cout, N);
+        // y[b] = w x[b] + bias: [Cout, Cin] x [Cin, N], w packed once for the batch; the float
+        // GEMM adds the bias to each tile while it is in cache
+        GemmEpilogue ep;
+        const bool fused = std::is_same_v<T, float> && b.defined();
+        if constexpr (std::is_same_v<T, float>) ep.bias = fused ? b.data<float>() : nullptr;
+        gemm_batched_cpu<T>(false, false, Cout, N, Cin, T(1), w.data<T>(), Cin, x.data<T>(),
+                            N, Cin * N, T(0), y.data<T>(), N, Cout * N, B, fused ? &ep : nullptr);
+        if (b.defined() && !fused) add_bias_bcn_cpu<T>(y.data<T>(), b.data<T>(), B, Cout, N);
     });
 }
 
@@ -56,10 +62,8 @@ void conv1x1_bwd(const Tensor& x, const Tensor& w, const Tensor& dy, Tensor* dx,
     dispatch("conv1x1 backward", {&dy, &x, &w, dx, dw, db}, [&](auto tag) {
         using T = decltype(tag);
         if (wanted(dx))  // dx[b] = w^T dy[b] : [Cin, Cout] x [Cout, N]
-            for (int64_t bi = 0; bi < B; ++bi)
-                gemm_cpu<T>(true, false, Cin, N, Cout, T(1), w.data<T>(), Cin,
-                            dy.data<T>() + bi * Cout * N, N, T(0), dx->data<T>() + bi * Cin * N,
-                            N);
+            gemm_batched_cpu<T>(true, false, Cin, N, Cout, T(1), w.data<T>(), Cin, dy.data<T>(),
+                                N, Cout * N, T(0), dx->data<T>(), N, Cin * N, B);
         if (wanted(dw))  // dw = sum_b dy[b] x[b]^T : [Cout, N] x [N, Cin], fixed b order
             for (int64_t bi = 0; bi < B; ++bi)
                 gemm_cpu<T>(false, true, Cout, Cin, N, T(1), dy.data<T>() + bi * Cout * N, N,

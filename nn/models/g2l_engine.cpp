@@ -29,6 +29,7 @@ double ms_since(Clock::time_point t0) {
 struct Affine {
     int64_t cout = 0, cin = 0;
     std::vector<float> w, b;
+    kernels::PackedGemmA packed;  // w in the GEMM's panels, for run_points
     bool relu = false;
 };
 
@@ -41,6 +42,7 @@ Affine to_affine(const MatD& W, const VecD& b, bool relu) {
         for (int64_t c = 0; c < W.cols(); ++c) a.w[size_t(r * W.cols() + c)] = float(W(r, c));
     a.b.resize(size_t(b.size()));
     for (int64_t r = 0; r < b.size(); ++r) a.b[size_t(r)] = float(b[r]);
+    a.packed = kernels::PackedGemmA(false, a.cout, a.cin, a.w.data(), a.cin);
     a.relu = relu;
     return a;
 }
@@ -201,20 +203,11 @@ struct PoseEngine::Impl {
     // y [cout, N] = A x (ld N) + bias, ReLU. obj_bias: [segments, cout] replacing A.b.
     void run_points(const Affine& A, const float* x, int64_t N, float* y,
                     const float* obj_bias) const {
-        kernels::gemm_cpu<float>(false, false, A.cout, N, A.cin, 1.f, A.w.data(), A.cin, x, N, 0.f,
-                                 y, N);
-        const int64_t S = int64_t(start.size()) - 1;
-#pragma omp parallel for schedule(static) if (A.cout * N > 32768)
-        for (int64_t r = 0; r < A.cout; ++r) {
-            float* row = y + r * N;
-            for (int64_t s = 0; s < S; ++s) {
-                const float b = obj_bias ? obj_bias[s * A.cout + r] : A.b[size_t(r)];
-                for (int64_t n = start[size_t(s)]; n < start[size_t(s + 1)]; ++n) {
-                    const float v = row[n] + b;
-                    row[n] = A.relu && v < 0.f ? 0.f : v;
-                }
-            }
-        }
+        kernels::GemmEpilogue ep;
+        ep.relu = A.relu;
+        ep.bias = obj_bias ? obj_bias : A.b.data();
+        if (obj_bias) ep.segments = start.data(), ep.num_segments = int64_t(start.size()) - 1;
+        kernels::gemm_packed_a_cpu(A.packed, N, x, N, y, N, &ep);
     }
 
     // out[s, c] = max over the points of segment s of x[c, :] (x: [C, N]).
@@ -223,9 +216,19 @@ struct PoseEngine::Impl {
 #pragma omp parallel for schedule(static) if (C * N > 32768)
         for (int64_t c = 0; c < C; ++c)
             for (int64_t s = 0; s < S; ++s) {
+                // 16 running maxima (they vectorize; one chain would be a compare per cycle),
+                // NaN skipped as by std::max(m, x) on one chain
+                constexpr int L = 16;
+                float lane[L];
+                for (float& v : lane) v = -INFINITY;
+                const float* row = x + c * N;
+                int64_t n = start[size_t(s)];
+                const int64_t end = start[size_t(s + 1)];
+                for (; n + L <= end; n += L)
+                    for (int l = 0; l < L; ++l) lane[l] = std::max(lane[l], row[n + l]);
                 float m = -INFINITY;
-                for (int64_t n = start[size_t(s)]; n < start[size_t(s + 1)]; ++n)
-                    m = std::max(m, x[c * N + n]);
+                for (; n < end; ++n) m = std::max(m, row[n]);
+                for (const float v : lane) m = std::max(m, v);
                 out[s * C + c] = m;
             }
     }
@@ -546,14 +549,12 @@ void PoseEngine::estimate(const std::vector<PoseQuery>& qs, int max_points, int 
             for (size_t s = 0; s < act.size(); ++s) {
                 const int64_t r0 = per_class ? int64_t(cls[s]) * m.K3 : 0;
                 const int64_t off = m.start[s], n = m.start[s + 1] - off;
-                kernels::gemm_cpu<float>(false, false, m.K3, n, m.evf_out.cin, 1.f,
-                                         m.evf_out.w.data() + r0 * m.evf_out.cin, m.evf_out.cin,
-                                         h + off, N, 0.f, m.feat.data() + off, N);
-                for (int64_t r = 0; r < m.K3; ++r) {
-                    const float b = m.evf_out.b[size_t(r0 + r)];
-                    float* row = m.feat.data() + r * N + off;
-                    for (int64_t k = 0; k < n; ++k) row[k] += b;
-                }
+                kernels::GemmEpilogue ep;
+                ep.bias = m.evf_out.b.data() + r0;
+                kernels::gemm_batched_cpu<float>(false, false, m.K3, n, m.evf_out.cin, 1.f,
+                                                 m.evf_out.w.data() + r0 * m.evf_out.cin,
+                                                 m.evf_out.cin, h + off, N, 0, 0.f,
+                                                 m.feat.data() + off, N, 0, 1, &ep);
             }
         }
         // Block C first (it reads feat rows [P, ...) and this->g, which block B's head keeps).

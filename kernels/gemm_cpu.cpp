@@ -40,11 +40,14 @@ constexpr int64_t kParallelMacs = int64_t(1) << 20;
 // MR rows x NR = 2 vectors of C: 24 of the 32 zmm registers on AVX-512, 12 of the 16 ymm/xmm
 // registers on AVX2 and SSE2, plus the two B vectors and one broadcast A value.
 // The x86 sets differ only in their intrinsics' prefix (and SSE2 has no FMA).
+// vrelu(v) = max_ps(0, v) returns v when v is NaN or -0, as std::max(v, 0.f) does.
 #define G2L_GEMM_X86_OPS(P)                                               \
     inline vec vload(const float* p) { return P##_loadu_ps(p); }          \
     inline void vstore(float* p, vec v) { P##_storeu_ps(p, v); }          \
     inline vec vset1(float x) { return P##_set1_ps(x); }                  \
-    inline vec vzero() { return P##_setzero_ps(); }
+    inline vec vzero() { return P##_setzero_ps(); }                       \
+    inline vec vadd(vec a, vec b) { return P##_add_ps(a, b); }            \
+    inline vec vrelu(vec v) { return P##_max_ps(P##_setzero_ps(), v); }
 #if defined(__AVX512F__) && !defined(G2L_GEMM_GENERIC)
 using vec = __m512;
 constexpr int kVL = 16, kMR = 12;
@@ -68,6 +71,8 @@ inline void vstore(float* p, vec v) { std::memcpy(p, &v, sizeof v); }
 inline vec vset1(float x) { return vec{x, x, x, x}; }
 inline vec vzero() { return vec{0, 0, 0, 0}; }
 inline vec vfma(vec a, vec b, vec c) { return a * b + c; }
+inline vec vadd(vec a, vec b) { return a + b; }
+inline vec vrelu(vec v) { return v < vzero() ? vzero() : v; }
 #endif
 #undef G2L_GEMM_X86_OPS
 constexpr int kNV = 2, kNR = kNV * kVL;
@@ -76,12 +81,25 @@ constexpr int kNV = 2, kNR = kNV * kVL;
 // micro-kernel walks the B micro-panels of a tile (kKC x kNC, in L2). A C tile is kMC x kNC.
 constexpr int64_t kKC = 384, kMC = 8 * kMR, kNC = 16 * kNR, kWantTiles = 8;
 
+// The epilogue of a GEMM without column segments, done by the micro-kernel as it stores the
+// last K block: + bias[row], then ReLU (the arithmetic of apply_epilogue, in registers).
+struct Finish {
+    const float* bias = nullptr;  // this micro-tile's first row's bias, or null
+    bool relu = false;
+    bool any() const { return bias || relu; }
+    vec operator()(vec v, int i) const {
+        if (bias) v = vadd(v, vset1(bias[i]));
+        return relu ? vrelu(v) : v;
+    }
+};
+
 // acc = sum_k pa[k][0..MR) (x) pb[k][0..NR) over one K block, then C[0..m, 0..n) += alpha acc
-// (= alpha acc + 0 when `overwrite`: C is not read, and its value is the same as on a zeroed C).
+// (= alpha acc + 0 when `overwrite`: C is not read, and its value is the same as on a zeroed C),
+// then `fin` on the result.
 // Edge tiles (m < MR or n < NR) go through a full-size buffer so that every element of C gets
 // the same arithmetic wherever it lies: the result does not depend on how C is partitioned.
 void micro_kernel(int64_t kc, const float* pa, const float* pb, float alpha, float* c,
-                  int64_t ldc, int m, int n, bool overwrite) {
+                  int64_t ldc, int m, int n, bool overwrite, const Finish& fin = {}) {
     vec acc[kMR][kNV];
     for (int i = 0; i < kMR; ++i)
         for (int j = 0; j < kNV; ++j) acc[i][j] = vzero();
@@ -100,16 +118,19 @@ void micro_kernel(int64_t kc, const float* pa, const float* pb, float alpha, flo
         for (int i = 0; i < kMR; ++i)
             for (int j = 0; j < kNV; ++j) {
                 float* d = c + i * ldc + j * kVL;
-                vstore(d, vfma(va, acc[i][j], overwrite ? vzero() : vload(d)));
+                const vec v = vfma(va, acc[i][j], overwrite ? vzero() : vload(d));
+                vstore(d, fin.any() ? fin(v, i) : v);
             }
         return;
     }
     alignas(64) float buf[kMR * kNR] = {};
     if (!overwrite)
         for (int i = 0; i < m; ++i) std::memcpy(buf + i * kNR, c + i * ldc, size_t(n) * sizeof(float));
-    for (int i = 0; i < kMR; ++i)
-        for (int j = 0; j < kNV; ++j)
-            vstore(buf + i * kNR + j * kVL, vfma(va, acc[i][j], vload(buf + i * kNR + j * kVL)));
+    for (int i = 0; i < m; ++i)  // rows past m are not stored (and have no bias)
+        for (int j = 0; j < kNV; ++j) {
+            const vec v = vfma(va, acc[i][j], vload(buf + i * kNR + j * kVL));
+            vstore(buf + i * kNR + j * kVL, fin.any() ? fin(v, i) : v);
+        }
     for (int i = 0; i < m; ++i) std::memcpy(c + i * ldc, buf + i * kNR, size_t(n) * sizeof(float));
 }
 
@@ -274,6 +295,14 @@ void apply_epilogue(const GemmEpilogue& ep, int64_t M, float* C, int64_t ldc, in
     }
 }
 
+// An epilogue without column segments (or with one) is done by the micro-kernel.
+bool fusable(const GemmEpilogue* ep) {
+    return ep && (ep->segments == nullptr || ep->num_segments == 1);
+}
+Finish finish(const GemmEpilogue& ep, int64_t r0) {
+    return Finish{ep.bias ? ep.bias + r0 : nullptr, ep.relu};
+}
+
 void sgemm_packed(const Sgemm& g) {
     const int64_t M = g.M, N = g.N, K = g.K;
     const int64_t pm = ceil_div(M, kMR), pn = ceil_div(N, kNR);  // micro-panels
@@ -294,6 +323,7 @@ void sgemm_packed(const Sgemm& g) {
     }
     const int64_t tn = ceil_div(pn, tpn), tiles = ceil_div(pm, tpm) * tn;
     [[maybe_unused]] const bool parallel = M * N * K * g.batch > kParallelMacs;
+    const bool fused = fusable(g.ep);
 #pragma omp parallel if (parallel)
     {
         int t = 0, nt = 1;
@@ -332,10 +362,11 @@ void sgemm_packed(const Sgemm& g) {
                             const int64_t c0 = q * kNR;
                             micro_kernel(kc, pa + p * kMR * kc, pbi + q * kNR * kc, g.alpha,
                                          C + r0 * g.ldc + c0, g.ldc, m,
-                                         int(std::min<int64_t>(kNR, N - c0)), first);
+                                         int(std::min<int64_t>(kNR, N - c0)), first,
+                                         last && fused ? finish(*g.ep, r0) : Finish{});
                         }
                     }
-                    if (last && g.ep)
+                    if (last && g.ep && !fused)
                         apply_epilogue(*g.ep, M, C, g.ldc, p0 * kMR, std::min(M, p1 * kMR),
                                        q0 * kNR, std::min(N, q1 * kNR));
                 }
@@ -438,6 +469,7 @@ void sgemm_prepacked(const Sgemm& g) {
     const int64_t M = g.M, N = g.N, K = g.K;
     const int64_t pm = ceil_div(M, kMR), pn = ceil_div(N, kNR), tpn = kNC / kNR;
     [[maybe_unused]] const bool parallel = M * N * K > kParallelMacs;
+    const bool fused = fusable(g.ep);
 #pragma omp parallel if (parallel)
     {
         int t = 0, nt = 1;
@@ -460,8 +492,9 @@ void sgemm_prepacked(const Sgemm& g) {
                     for (int64_t q = q0; q < q1; ++q)
                         micro_kernel(kc, pak + p * kMR * kc, pb + (q - q0) * kNR * kc, 1.f,
                                      g.C + r0 * g.ldc + q * kNR, g.ldc, m,
-                                     int(std::min<int64_t>(kNR, N - q * kNR)), first);
-                    if (last && g.ep) apply_epilogue(*g.ep, M, g.C, g.ldc, r0, r0 + m, c0, c1);
+                                     int(std::min<int64_t>(kNR, N - q * kNR)), first,
+                                     last && fused ? finish(*g.ep, r0) : Finish{});
+                    if (last && g.ep && !fused) apply_epilogue(*g.ep, M, g.C, g.ldc, r0, r0 + m, c0, c1);
                 }
             }
         }

@@ -174,42 +174,70 @@ TEST_CASE("gemm_batched_cpu equals one gemm_cpu per batch item, bitwise", "[kern
 
 TEST_CASE("gemm epilogue: bias per row or per column segment, ReLU, on every tile",
           "[kernels][gemm]") {
-    // Shapes with one tile, many tiles and partial edges; K 0 (C = bias only) too.
+    // No segments and one (done in the micro-kernel's stores) and three (a pass over each
+    // finished tile); shapes with one tile, many tiles and partial edges; K 0 (C = bias only).
     for (const int64_t K : {int64_t(0), int64_t(3), int64_t(500)})
         for (const int64_t N : {int64_t(37), int64_t(1500)})
-            for (const bool segmented : {false, true}) {
-                const int64_t M = 50;
-                INFO("K " << K << " N " << N << " segmented " << segmented);
-                const auto A = rnd<float>(size_t(M * std::max<int64_t>(K, 1)), 12);
-                const auto B = rnd<float>(size_t(std::max<int64_t>(K, 1) * N), 13);
-                const std::vector<int64_t> seg = {0, 5, N / 2, N};  // 3 segments
-                const auto bias = rnd<float>(size_t(3 * M), 14);
-                kernels::GemmEpilogue ep;
-                ep.bias = bias.data();
-                ep.relu = true;
-                if (segmented) ep.segments = seg.data(), ep.num_segments = 3;
-                std::vector<float> plain(size_t(M * N), 7.f), fused(size_t(M * N), 7.f);
-                kernels::gemm_cpu<float>(false, false, M, N, K, 1.f, A.data(), K, B.data(), N,
-                                         0.f, plain.data(), N);
-                for (int64_t r = 0; r < M; ++r)
-                    for (int64_t n = 0; n < N; ++n) {
-                        const int64_t s = !segmented ? 0 : n < 5 ? 0 : n < N / 2 ? 1 : 2;
-                        float& v = plain[size_t(r * N + n)];
-                        v = std::max(v + bias[size_t(s * M + r)], 0.f);
+            for (const int segments : {0, 1, 3})
+                for (const bool relu : {false, true}) {
+                    const int64_t M = 50;
+                    INFO("K " << K << " N " << N << " segments " << segments << " relu " << relu);
+                    const auto A = rnd<float>(size_t(M * std::max<int64_t>(K, 1)), 12);
+                    const auto B = rnd<float>(size_t(std::max<int64_t>(K, 1) * N), 13);
+                    const std::vector<int64_t> seg =
+                        segments == 3 ? std::vector<int64_t>{0, 5, N / 2, N} : std::vector<int64_t>{0, N};
+                    const auto bias = rnd<float>(size_t(3 * M), 14);
+                    kernels::GemmEpilogue ep;
+                    ep.bias = bias.data();
+                    ep.relu = relu;
+                    if (segments) ep.segments = seg.data(), ep.num_segments = segments;
+                    std::vector<float> plain(size_t(M * N), 7.f), fused(size_t(M * N), 7.f);
+                    kernels::gemm_cpu<float>(false, false, M, N, K, 1.f, A.data(), K, B.data(), N,
+                                             0.f, plain.data(), N);
+                    for (int64_t r = 0; r < M; ++r)
+                        for (int64_t n = 0; n < N; ++n) {
+                            const int64_t s = segments < 3 ? 0 : n < 5 ? 0 : n < N / 2 ? 1 : 2;
+                            float& v = plain[size_t(r * N + n)];
+                            v += bias[size_t(s * M + r)];
+                            if (relu) v = std::max(v, 0.f);
+                        }
+                    kernels::gemm_batched_cpu<float>(false, false, M, N, K, 1.f, A.data(), K,
+                                                     B.data(), N, 0, 0.f, fused.data(), N, 0, 1, &ep);
+                    CHECK(std::memcmp(plain.data(), fused.data(), plain.size() * sizeof(float)) == 0);
+                    if (K > 0) {
+                        std::vector<float> packed(size_t(M * N), 7.f);
+                        const kernels::PackedGemmA pa(false, M, K, A.data(), K);
+                        kernels::gemm_packed_a_cpu(pa, N, B.data(), N, packed.data(), N, &ep);
+                        CHECK(std::memcmp(plain.data(), packed.data(), plain.size() * sizeof(float)) == 0);
                     }
-                kernels::gemm_batched_cpu<float>(false, false, M, N, K, 1.f, A.data(), K,
-                                                 B.data(), N, 0, 0.f, fused.data(), N, 0, 1, &ep);
-                CHECK(std::memcmp(plain.data(), fused.data(), plain.size() * sizeof(float)) == 0);
-                if (K > 0) {
-                    std::vector<float> packed(size_t(M * N), 7.f);
-                    const kernels::PackedGemmA pa(false, M, K, A.data(), K);
-                    kernels::gemm_packed_a_cpu(pa, N, B.data(), N, packed.data(), N, &ep);
-                    CHECK(std::memcmp(plain.data(), packed.data(), plain.size() * sizeof(float)) == 0);
+                    // ReLU clipped something (and only with relu), and not everything.
+                    const auto zeros = std::count(fused.begin(), fused.end(), 0.f);
+                    CHECK((zeros > 0) == relu);
+                    CHECK(zeros < int64_t(fused.size()));
                 }
-                // ReLU did clip something, and the bias did move something.
-                CHECK(std::count(fused.begin(), fused.end(), 0.f) > 0);
-                CHECK(std::count(fused.begin(), fused.end(), 0.f) < int64_t(fused.size()));
-            }
+}
+
+TEST_CASE("gemm epilogue: a NaN stays NaN through the bias and the ReLU, fused or not",
+          "[kernels][gemm]") {
+    // A NaN in B makes its column NaN; ReLU must not turn it into 0 (std::max(NaN, 0) is NaN).
+    const int64_t M = 13, N = 40, K = 2;
+    auto B = rnd<float>(size_t(K * N), 18);
+    B[3] = std::nanf("");
+    const auto A = rnd<float>(size_t(M * K), 19), bias = rnd<float>(size_t(2 * M), 20);
+    const std::vector<int64_t> seg = {0, 20, N};
+    for (const int segments : {0, 2}) {
+        kernels::GemmEpilogue ep;
+        ep.bias = bias.data();
+        ep.relu = true;
+        if (segments) ep.segments = seg.data(), ep.num_segments = segments;
+        std::vector<float> c(size_t(M * N));
+        kernels::gemm_batched_cpu<float>(false, false, M, N, K, 1.f, A.data(), K, B.data(), N, 0,
+                                         0.f, c.data(), N, 0, 1, &ep);
+        for (int64_t r = 0; r < M; ++r) {
+            CHECK(std::isnan(c[size_t(r * N + 3)]));
+            CHECK(c[size_t(r * N + 4)] >= 0.f);
+        }
+    }
 }
 
 TEST_CASE("PackedGemmA: the packed product equals gemm_cpu bitwise, and bad input throws",

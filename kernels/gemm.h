@@ -13,7 +13,8 @@
 
 namespace g2l::kernels {
 
-/// What a float GEMM does to each finished tile of C, while it is in cache:
+/// What a float GEMM does to C once its sum is complete (in the micro-kernel's registers without
+/// segments, else in a pass over each finished tile while it is in cache):
 /// C[r, n] = relu?(C[r, n] + bias), bias = bias[r], or bias[s * M + r] for the columns n of
 /// segment s, [segments[s], segments[s + 1]) (num_segments + 1 starts, the first 0, the last N).
 struct GemmEpilogue {

@@ -228,8 +228,12 @@ void pack_panels(bool rows_contiguous, const float* X, int64_t ld, int64_t rows,
     else pack_k_contiguous<R>(X, ld, rows, p0, p1, k0, kc, dst);
 }
 
-// The share [lo, hi) of n items of thread t among nt (contiguous, equal to within one).
-void share(int64_t n, int t, int nt, int64_t* lo, int64_t* hi) {
+// The calling thread's share [lo, hi) of n items among its team (contiguous, equal to within one).
+void share(int64_t n, int64_t* lo, int64_t* hi) {
+    int64_t t = 0, nt = 1;
+#ifdef _OPENMP
+    t = omp_get_thread_num(), nt = omp_get_num_threads();
+#endif
     *lo = n * t / nt;
     *hi = n * (t + 1) / nt;
 }
@@ -326,20 +330,16 @@ void sgemm_packed(const Sgemm& g) {
     const bool fused = fusable(g.ep);
 #pragma omp parallel if (parallel)
     {
-        int t = 0, nt = 1;
-#ifdef _OPENMP
-        t = omp_get_thread_num(), nt = omp_get_num_threads();
-#endif
         for (int64_t k0 = 0; k0 < K; k0 += kKC) {
             const int64_t kc = std::min(kKC, K - k0);
             const bool first = k0 == 0 && g.overwrite, last = k0 + kc >= K;
             int64_t lo, hi;
-            share(pm, t, nt, &lo, &hi);
+            share(pm, &lo, &hi);
             pack_panels<kMR>(g.trans_a, g.A, g.lda, M, lo, hi, k0, kc, pa);
             for (int64_t b0 = 0; b0 < g.batch; b0 += group) {
                 const int64_t nb = std::min(group, g.batch - b0);
                 // This thread's share of the group's nb * pn panels, item by item.
-                share(nb * pn, t, nt, &lo, &hi);
+                share(nb * pn, &lo, &hi);
                 for (int64_t i = b0; i < b0 + nb; ++i) {
                     const int64_t base = (i - b0) * pn;
                     const int64_t q0 = std::max(lo, base) - base, q1 = std::min(hi, base + pn) - base;
@@ -472,12 +472,8 @@ void sgemm_prepacked(const Sgemm& g) {
     const bool fused = fusable(g.ep);
 #pragma omp parallel if (parallel)
     {
-        int t = 0, nt = 1;
-#ifdef _OPENMP
-        t = omp_get_thread_num(), nt = omp_get_num_threads();
-#endif
         int64_t lo, hi;
-        share(pn, t, nt, &lo, &hi);
+        share(pn, &lo, &hi);
         float* pb = scratch(1, size_t(std::min(tpn, hi - lo) * kNR * std::min(K, kKC)));
         for (int64_t q0 = lo; q0 < hi; q0 += tpn) {
             const int64_t q1 = std::min(hi, q0 + tpn), c0 = q0 * kNR, c1 = std::min(N, q1 * kNR);

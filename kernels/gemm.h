@@ -54,6 +54,11 @@ private:
     int64_t M_ = 0, K_ = 0;
 };
 
+/// The FLOPs (2 per multiply-add) of every float product this process has run so far, all
+/// threads together (gemm_cpu, gemm_batched_cpu, gemm_packed_a_cpu): what a benchmark divides by
+/// its time to get the rate of useful GEMM work.
+uint64_t sgemm_flops_done();
+
 /// C [M, N] = op(A) B (B [K, N] with ldb; C overwritten), then the epilogue. Bitwise the same as
 /// gemm_cpu(trans_a, false, M, N, K, 1, A, lda, B, ldb, 0, C, ldc) and the epilogue after it.
 void gemm_packed_a_cpu(const PackedGemmA& a, int64_t N, const float* B, int64_t ldb, float* C,

@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <atomic>
 #include <cstdlib>
 #include <cstring>
 #include <memory>
@@ -307,7 +308,14 @@ Finish finish(const GemmEpilogue& ep, int64_t r0) {
     return Finish{ep.bias ? ep.bias + r0 : nullptr, ep.relu};
 }
 
+std::atomic<uint64_t> g_sgemm_flops{0};  // sgemm_flops_done()
+void count_flops(const Sgemm& g) {
+    g_sgemm_flops.fetch_add(2 * uint64_t(g.M) * uint64_t(g.N) * uint64_t(g.K) * uint64_t(g.batch),
+                            std::memory_order_relaxed);
+}
+
 void sgemm_packed(const Sgemm& g) {
+    count_flops(g);
     const int64_t M = g.M, N = g.N, K = g.K;
     const int64_t pm = ceil_div(M, kMR), pn = ceil_div(N, kNR);  // micro-panels
     const int64_t kc_max = std::min(K, kKC);
@@ -466,6 +474,7 @@ void gemm_batched_cpu(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t 
 // thread ever waits for another between K blocks. A thread's columns go in chunks of kNC (their
 // packed B stays in L2); each row panel gets the epilogue once its last K block is done.
 void sgemm_prepacked(const Sgemm& g) {
+    count_flops(g);
     const int64_t M = g.M, N = g.N, K = g.K;
     const int64_t pm = ceil_div(M, kMR), pn = ceil_div(N, kNR), tpn = kNC / kNR;
     [[maybe_unused]] const bool parallel = M * N * K > kParallelMacs;
@@ -496,6 +505,8 @@ void sgemm_prepacked(const Sgemm& g) {
         }
     }
 }
+
+uint64_t sgemm_flops_done() { return g_sgemm_flops.load(std::memory_order_relaxed); }
 
 PackedGemmA::PackedGemmA(bool trans_a, int64_t M, int64_t K, const float* A, int64_t lda)
     : M_(M), K_(K) {

@@ -171,17 +171,24 @@ std::vector<BenchFigure> bench_training(int reps, double width, int batch, int p
                            float((i & 4) ? 50 : -50));
     LossWeights lw;
     Rng step_rng(9);
-    const double t = median_seconds([&] {
+    const auto step = [&] {
         adam.zero_grad();
         StepLosses L = g2l_step(net, batch_samples, kps, classes, seg_points, lw, step_rng);
         L.total.backward();
         adam.step();
-    }, reps, 1);
+    };
+    const uint64_t flops0 = kernels::sgemm_flops_done();
+    step();  // the warm-up step, whose GEMM work every step repeats
+    const double gflop = double(kernels::sgemm_flops_done() - flops0) * 1e-9;
+    const double t = median_seconds(step, reps, 0);
     const std::string what = "G2L-Net step (width " + std::to_string(width).substr(0, 4) +
                              ", batch " + std::to_string(batch) + ", " + std::to_string(points) +
                              " -> " + std::to_string(seg_points) + " points)";
     return {{"train_samples_per_s", batch / t, "samples/s", what},
-            {"train_step_ms", t * 1e3, "ms", what}};
+            {"train_step_ms", t * 1e3, "ms", what},
+            {"train_step_gemm_gflop", gflop, "GFLOP", "GEMM work of one step (" + what + ")"},
+            {"train_gemm_gflops", gflop / t, "GFLOP/s",
+             "GEMM work of one step over the step's time: the rate of useful GEMM work"}};
 }
 
 std::vector<BenchFigure> bench_pose(const std::string& prefix, int reps, double width,

@@ -277,3 +277,26 @@ TEST_CASE("PackedGemmA: the packed product equals gemm_cpu bitwise, and bad inpu
                                                         nullptr, 1, 0, 0.0, nullptr, 1, 0, 1, &ep),
                       Catch::Contains("float-only"));
 }
+
+TEST_CASE("sgemm_flops_done counts 2 M N K per float product, batches and prepacked ones too",
+          "[kernels][gemm]") {
+    const auto A = rnd<float>(6 * 5, 21), B = rnd<float>(3 * 5 * 4, 22);
+    std::vector<float> C(3 * 6 * 4);
+    uint64_t before = kernels::sgemm_flops_done();
+    kernels::gemm_cpu<float>(false, false, 6, 4, 5, 1.f, A.data(), 5, B.data(), 4, 0.f, C.data(), 4);
+    CHECK(kernels::sgemm_flops_done() - before == 2 * 6 * 4 * 5);
+    before = kernels::sgemm_flops_done();
+    kernels::gemm_batched_cpu<float>(false, false, 6, 4, 5, 1.f, A.data(), 5, B.data(), 4, 20, 0.f,
+                                     C.data(), 4, 24, 3);
+    CHECK(kernels::sgemm_flops_done() - before == 3 * 2 * 6 * 4 * 5);
+    before = kernels::sgemm_flops_done();
+    kernels::gemm_packed_a_cpu(kernels::PackedGemmA(false, 6, 5, A.data(), 5), 4, B.data(), 4,
+                               C.data(), 4);
+    CHECK(kernels::sgemm_flops_done() - before == 2 * 6 * 4 * 5);
+    before = kernels::sgemm_flops_done();  // double products and empty ones are not counted
+    const std::vector<double> Ad(30, 1.0), Bd(20, 1.0);
+    std::vector<double> Cd(24);
+    kernels::gemm_cpu<double>(false, false, 6, 4, 5, 1.0, Ad.data(), 5, Bd.data(), 4, 0.0, Cd.data(), 4);
+    kernels::gemm_cpu<float>(false, false, 6, 4, 0, 1.f, A.data(), 5, B.data(), 4, 0.f, C.data(), 4);
+    CHECK(kernels::sgemm_flops_done() == before);
+}

@@ -314,6 +314,25 @@ void count_flops(const Sgemm& g) {
                             std::memory_order_relaxed);
 }
 
+// One K block of C's row panels [p0, p1) x column panels [q0, q1): pa holds the block's A
+// panels, pb B's panels from q0 on. In the last K block each row panel is finished by the
+// micro-kernel, or by apply_epilogue when the epilogue has column segments.
+void run_block(const Sgemm& g, float* C, const float* pa, const float* pb, int64_t kc,
+               int64_t p0, int64_t p1, int64_t q0, int64_t q1, bool first, bool last) {
+    const bool fused = fusable(g.ep);
+    for (int64_t p = p0; p < p1; ++p) {
+        const int64_t r0 = p * kMR;
+        const int m = int(std::min<int64_t>(kMR, g.M - r0));
+        for (int64_t q = q0; q < q1; ++q)
+            micro_kernel(kc, pa + p * kMR * kc, pb + (q - q0) * kNR * kc, g.alpha,
+                         C + r0 * g.ldc + q * kNR, g.ldc, m,
+                         int(std::min<int64_t>(kNR, g.N - q * kNR)), first,
+                         last && fused ? finish(*g.ep, r0) : Finish{});
+        if (last && g.ep && !fused)
+            apply_epilogue(*g.ep, g.M, C, g.ldc, r0, r0 + m, q0 * kNR, std::min(g.N, q1 * kNR));
+    }
+}
+
 void sgemm_packed(const Sgemm& g) {
     count_flops(g);
     const int64_t M = g.M, N = g.N, K = g.K;
@@ -335,7 +354,6 @@ void sgemm_packed(const Sgemm& g) {
     }
     const int64_t tn = ceil_div(pn, tpn), tiles = ceil_div(pm, tpm) * tn;
     [[maybe_unused]] const bool parallel = M * N * K * g.batch > kParallelMacs;
-    const bool fused = fusable(g.ep);
 #pragma omp parallel if (parallel)
     {
         for (int64_t k0 = 0; k0 < K; k0 += kKC) {
@@ -359,24 +377,10 @@ void sgemm_packed(const Sgemm& g) {
 #pragma omp for schedule(dynamic)
                 for (int64_t job = 0; job < nb * tiles; ++job) {
                     const int64_t i = job / tiles, tile = job % tiles;
-                    float* C = g.C + (b0 + i) * g.stride_c;
-                    const float* pbi = pb + i * pn * kNR * kc;
                     const int64_t p0 = (tile / tn) * tpm, p1 = std::min(pm, p0 + tpm);
                     const int64_t q0 = (tile % tn) * tpn, q1 = std::min(pn, q0 + tpn);
-                    for (int64_t p = p0; p < p1; ++p) {
-                        const int64_t r0 = p * kMR;
-                        const int m = int(std::min<int64_t>(kMR, M - r0));
-                        for (int64_t q = q0; q < q1; ++q) {
-                            const int64_t c0 = q * kNR;
-                            micro_kernel(kc, pa + p * kMR * kc, pbi + q * kNR * kc, g.alpha,
-                                         C + r0 * g.ldc + c0, g.ldc, m,
-                                         int(std::min<int64_t>(kNR, N - c0)), first,
-                                         last && fused ? finish(*g.ep, r0) : Finish{});
-                        }
-                    }
-                    if (last && g.ep && !fused)
-                        apply_epilogue(*g.ep, M, C, g.ldc, p0 * kMR, std::min(M, p1 * kMR),
-                                       q0 * kNR, std::min(N, q1 * kNR));
+                    run_block(g, g.C + (b0 + i) * g.stride_c, pa, pb + (i * pn + q0) * kNR * kc,
+                              kc, p0, p1, q0, q1, first, last);
                 }
             }
         }
@@ -478,7 +482,6 @@ void sgemm_prepacked(const Sgemm& g) {
     const int64_t M = g.M, N = g.N, K = g.K;
     const int64_t pm = ceil_div(M, kMR), pn = ceil_div(N, kNR), tpn = kNC / kNR;
     [[maybe_unused]] const bool parallel = M * N * K > kParallelMacs;
-    const bool fused = fusable(g.ep);
 #pragma omp parallel if (parallel)
     {
         int64_t lo, hi;
@@ -490,17 +493,7 @@ void sgemm_prepacked(const Sgemm& g) {
                 const int64_t kc = std::min(kKC, K - k0);
                 const bool first = k0 == 0, last = k0 + kc >= K;
                 pack_panels<kNR>(true, g.B + c0, g.ldb, c1 - c0, 0, q1 - q0, k0, kc, pb);
-                const float* pak = g.prepacked + pm * kMR * k0;
-                for (int64_t p = 0; p < pm; ++p) {
-                    const int64_t r0 = p * kMR;
-                    const int m = int(std::min<int64_t>(kMR, M - r0));
-                    for (int64_t q = q0; q < q1; ++q)
-                        micro_kernel(kc, pak + p * kMR * kc, pb + (q - q0) * kNR * kc, 1.f,
-                                     g.C + r0 * g.ldc + q * kNR, g.ldc, m,
-                                     int(std::min<int64_t>(kNR, N - q * kNR)), first,
-                                     last && fused ? finish(*g.ep, r0) : Finish{});
-                    if (last && g.ep && !fused) apply_epilogue(*g.ep, M, g.C, g.ldc, r0, r0 + m, c0, c1);
-                }
+                run_block(g, g.C, g.prepacked + pm * kMR * k0, pb, kc, 0, pm, q0, q1, first, last);
             }
         }
     }
@@ -513,7 +506,7 @@ PackedGemmA::PackedGemmA(bool trans_a, int64_t M, int64_t K, const float* A, int
     G2L_CHECK(M > 0 && K > 0, "PackedGemmA: an empty matrix (", M, " x ", K, ")");
     const int64_t pm = ceil_div(M, kMR);
     data_.resize(size_t(pm * kMR * K));
-    for (int64_t k0 = 0; k0 < K; k0 += kKC)  // K block k0 at pm * kMR * k0, as sgemm_packed reads it
+    for (int64_t k0 = 0; k0 < K; k0 += kKC)  // K block k0 at pm * kMR * k0, as sgemm_prepacked reads it
         pack_panels<kMR>(trans_a, A, lda, M, 0, pm, k0, std::min(kKC, K - k0),
                          data_.data() + pm * kMR * k0);
 }

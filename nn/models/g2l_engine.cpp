@@ -29,7 +29,7 @@ double ms_since(Clock::time_point t0) {
 struct Affine {
     int64_t cout = 0, cin = 0;
     std::vector<float> w, b;
-    kernels::PackedGemmA packed;  // w in the GEMM's panels, for run_points
+    kernels::PackedGemmA packed;  // a layer run_points runs: w in the GEMM's panels, w dropped
     bool relu = false;
 };
 
@@ -42,9 +42,15 @@ Affine to_affine(const MatD& W, const VecD& b, bool relu) {
         for (int64_t c = 0; c < W.cols(); ++c) a.w[size_t(r * W.cols() + c)] = float(W(r, c));
     a.b.resize(size_t(b.size()));
     for (int64_t r = 0; r < b.size(); ++r) a.b[size_t(r)] = float(b[r]);
-    a.packed = kernels::PackedGemmA(false, a.cout, a.cin, a.w.data(), a.cin);
     a.relu = relu;
     return a;
+}
+
+// A layer that run_points runs: its weights go into the GEMM's panels once, and its rows (only
+// run_vec and class_rows read rows) are dropped.
+void pack_for_points(Affine* a) {
+    a->packed = kernels::PackedGemmA(false, a->cout, a->cin, a->w.data(), a->cin);
+    std::vector<float>().swap(a->w);
 }
 
 // The state dict of the net, read as double matrices / vectors.
@@ -346,6 +352,14 @@ PoseEngine::PoseEngine(const G2LNet& net) : impl_(std::make_unique<Impl>()) {
         m.rre_head = load_head(d, "rre.mlp", 0, m.feat_bb, C, 2, false);
         m.rre_out = load_plain(d, "rre.out", false);
     }
+    for (Backbone* bb : {&m.seg_bb, &m.feat_bb})
+        for (Affine& l : bb->l) pack_for_points(&l);
+    for (Head* h : {&m.seg_head, &m.evf_head, &m.rot_head, &m.rre_head}) {
+        if (h->point.cout == 0) continue;  // a block the config leaves out (evf, rre)
+        pack_for_points(&h->point);
+        for (Affine& l : h->rest) pack_for_points(&l);
+    }
+    for (Affine* a : {&m.seg_out, &m.t_mlp[0], &m.t_mlp[1], &m.t_mlp[2]}) pack_for_points(a);
 }
 
 PoseEngine::~PoseEngine() = default;

@@ -25,6 +25,7 @@ using json = nlohmann::json;
 
 // --bop-csv, --instances and --vis for the instances of one evaluated set.
 void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::eval::InstanceResult>& inst,
+                   const std::vector<g2l::eval::HypothesisRecord>& hyps,
                    std::ofstream* csv, std::ofstream* jsonl, const std::string& vis_dir,
                    const std::string& set_name) {
     // BOP: `time` is the wall time of the whole image, the same on all of its rows.
@@ -52,10 +53,18 @@ void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::eval::In
             json j = {{"set", set_name}, {"scene", r.scene}, {"image_id", r.image_id},
                       {"inst", r.inst_index}, {"obj_id", r.obj_id}, {"status", r.status},
                       {"found", r.found}, {"score", r.score},
-                      {"box", {r.box.x, r.box.y, r.box.w, r.box.h}}, {"gt", pose_json(r.gt)},
-                      {"ms", r.ms}};
-            if (r.found) {
-                j["est"] = pose_json(r.est);
+                      {"box", {r.box.x, r.box.y, r.box.w, r.box.h}}, {"ms", r.ms}};
+            if (!r.false_positive) j["gt"] = pose_json(r.gt);
+            if (r.reported) {  // the hypotheses road
+                j["right"] = r.right;
+                j["false_positive"] = r.false_positive;
+                j["det_score"] = r.det_score;
+                if (r.verify_score >= 0)
+                    j["check"] = {{"explained", r.explained}, {"violation", r.violation},
+                                  {"seg_agree", r.seg_agree}};
+            }
+            if (r.found) j["est"] = pose_json(r.est);
+            if (r.found && !r.false_positive) {
                 j["add_mm"] = r.add_mm;
                 j["adds_mm"] = r.adds_mm;
                 j["addsym_mm"] = r.addsym_mm;
@@ -77,8 +86,13 @@ void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::eval::In
     if (vis_dir.empty()) return;
     namespace fs = std::filesystem;
     // One image per frame: ground truth green, estimate blue (the paper's Fig. 7).
+    // With the hypotheses road, each reported pose carries its score and the rejected
+    // hypotheses are drawn in red with theirs and the reason.
     std::map<std::pair<std::string, int>, std::vector<const g2l::eval::InstanceResult*>> by_frame;
     for (const auto& r : inst) by_frame[{r.scene, r.image_id}].push_back(&r);
+    std::map<std::pair<std::string, int>, std::vector<const g2l::eval::HypothesisRecord*>> hyp_frame;
+    for (const auto& h : hyps) hyp_frame[{h.scene, h.image_id}].push_back(&h);
+    char label[128];
     for (const auto& f : ds.frames()) {
         const auto it = by_frame.find({f.scene, f.image_id});
         if (it == by_frame.end()) continue;
@@ -89,19 +103,29 @@ void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::eval::In
             int w = 0, h = 0;
             im = g2l::data::depth_to_rgb(ds.load_depth_mm(f, &w, &h), w, h);
         }
+        const auto hit = hyp_frame.find({f.scene, f.image_id});
+        if (hit != hyp_frame.end())  // rejected hypotheses first, under the reported poses
+            for (const auto* h : hit->second) {
+                if (h->verdict == "accepted" || !h->posed) continue;
+                const g2l::geom::ModelInfo& mi = ds.model(h->obj_id).info;
+                g2l::data::draw_box3d(&im, mi.min, mi.min + mi.size, h->est, f.K, {230, 40, 40}, 1);
+                std::snprintf(label, sizeof label, "%d %s %.2f", h->obj_id, h->verdict.c_str(),
+                              h->score);
+                g2l::data::draw_text(&im, h->box.x, h->box.y + h->box.h - 2, label, {255, 120, 120});
+            }
         for (const auto* r : it->second) {
             const g2l::geom::ModelInfo& mi = ds.model(r->obj_id).info;
             const Eigen::Vector3d lo = mi.min, hi = mi.min + mi.size;
-            g2l::data::draw_box3d(&im, lo, hi, r->gt, f.K, {40, 220, 40});
+            if (!r->false_positive) g2l::data::draw_box3d(&im, lo, hi, r->gt, f.K, {40, 220, 40});
             if (r->found) g2l::data::draw_box3d(&im, lo, hi, r->est, f.K, {40, 90, 255});
-            if (r->det_iou >= 0 && !r->box.empty()) {  // the detector's 2D box (yellow)
-                const float x0 = float(r->box.x), y0 = float(r->box.y);
-                const float x1 = x0 + float(r->box.w), y1 = y0 + float(r->box.h);
-                const g2l::data::Rgb c{250, 210, 0};
-                g2l::data::draw_line(&im, x0, y0, x1, y0, c, 1);
-                g2l::data::draw_line(&im, x1, y0, x1, y1, c, 1);
-                g2l::data::draw_line(&im, x1, y1, x0, y1, c, 1);
-                g2l::data::draw_line(&im, x0, y1, x0, y0, c, 1);
+            if (r->det_iou >= 0 && !r->box.empty())  // the detector's 2D box (yellow)
+                g2l::data::draw_rect(&im, r->box.x, r->box.y, r->box.w, r->box.h, {250, 210, 0});
+            if (r->reported) {
+                std::snprintf(label, sizeof label, "%d %s %.2f", r->obj_id,
+                              ds.model(r->obj_id).name.c_str(), r->score);
+                g2l::data::draw_text(&im, r->box.x, std::max(10, r->box.y - 3), label,
+                                     r->false_positive ? g2l::data::Rgb{255, 160, 60}
+                                                       : g2l::data::Rgb{120, 170, 255});
             }
         }
         g2l::data::save_png((fs::path(vis_dir) / (f.scene + "_" + std::to_string(f.image_id) + ".png")).string(), im);
@@ -109,7 +133,8 @@ void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::eval::In
     // Accuracy against the threshold (fraction of the diameter, 0-20%) per object: ADD-S (red),
     // ADD modulo the geometric symmetries (blue), ADD (grey).
     std::map<int, std::vector<const g2l::eval::InstanceResult*>> by_obj;
-    for (const auto& r : inst) by_obj[r.obj_id].push_back(&r);
+    for (const auto& r : inst)
+        if (!r.false_positive) by_obj[r.obj_id].push_back(&r);
     for (const auto& [id, rs] : by_obj) {
         const double d = ds.model(id).info.diameter;
         std::vector<std::vector<std::pair<double, double>>> curves(3);
@@ -117,7 +142,7 @@ void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::eval::In
             const double frac = 0.2 * k / 40.0;
             double n[3] = {0, 0, 0};
             for (const auto* r : rs) {
-                if (!r->found) continue;
+                if (!r->found || r->det_miss()) continue;
                 n[0] += r->adds_mm < frac * d;
                 n[1] += r->addsym_mm < frac * d;
                 n[2] += r->add_mm < frac * d;
@@ -210,9 +235,45 @@ int main(int argc, char** argv) {
                    "turns, the best depth fit wins; ~40 ms per object), icp (ICP from the "
                    "networks' pose only), none (the networks alone, as G2L-Net publishes them)")
         ->check(CLI::IsMember({"none", "icp", "turns"}));
+    g2l::infer::HypothesisOptions hyp_opt;
+    app.add_option("--min-pose-score", hyp_opt.min_score,
+                   "--boxes det / file: hypotheses whose depth-verified score is below this are "
+                   "rejected, not reported (default 0: every pose the verification ranks first)")
+        ->check(CLI::Range(0.0, 1.0));
+    app.add_option("--max-per-object", hyp_opt.max_per_object,
+                   "--boxes det / file: peaks of one object tried per frame (several instances)")
+        ->check(g2l::cli::at_least(1));
+    app.add_option("--max-hypotheses", hyp_opt.max_hypotheses,
+                   "--boxes det / file: hypotheses posed and verified per frame")
+        ->check(g2l::cli::at_least(1));
+    app.add_option("--min-det-score", hyp_opt.min_det_score,
+                   "--boxes det / file: detections scoring below this are not tried")
+        ->check(CLI::Range(0.0, 1.0));
+    app.add_option("--alike", hyp_opt.alike_frac,
+                   "--boxes det / file: a peak is also tried as each object whose sorted box "
+                   "sides lie within this fraction of its own (0 = off)")
+        ->check(CLI::Range(0.0, 1.0));
+    std::string pr_png, hyps_path, fit_score;
+    app.add_option("--fit-score", fit_score,
+                   "--boxes det / file: fit the score model (the probability that a verified "
+                   "pose is right, ADD-S < 0.1 d) to this run's hypotheses and write its weights "
+                   "as JSON here (fit on renders only; the shipped weights are infer/"
+                   "frame_pipeline.h's defaults, docs/results.md)");
+    app.add_option("--pr-curve", pr_png,
+                   "--boxes det / file: write the precision-recall curve of the reported poses "
+                   "over their verified score as a PNG (x: recall %, y: precision %) and print "
+                   "its points");
+    app.add_option("--hypotheses", hyps_path,
+                   "--boxes det / file: write every hypothesis (score, verdict, right) as JSON "
+                   "lines");
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_eval"); rc >= 0) return rc;
+    if ((!pr_png.empty() || !hyps_path.empty() || !fit_score.empty()) && boxes == "gt") {
+        std::fprintf(stderr, "g2l_eval: --pr-curve, --hypotheses and --fit-score need --boxes det "
+                             "or file (GT boxes have no hypotheses)\n");
+        return g2l::cli::kUsageError;
+    }
     if (checkpoint.empty() && detector_path.empty()) {
         std::fprintf(stderr, "g2l_eval: give --checkpoint FILE (and/or --detector FILE; see "
                              "g2l_eval --help)\n");
@@ -310,6 +371,11 @@ int main(int argc, char** argv) {
             G2L_CHECK(csv_out.good(), "--bop-csv '", bop_csv, "': cannot write the file");
             csv_out << "scene_id,im_id,obj_id,score,R,t,time\n";
         }
+        std::ofstream hyp_out;
+        if (!hyps_path.empty()) {
+            hyp_out.open(hyps_path);
+            G2L_CHECK(hyp_out.good(), "--hypotheses '", hyps_path, "': cannot write the file");
+        }
         if (!instances_path.empty()) {
             inst_out.open(instances_path);
             G2L_CHECK(inst_out.good(), "--instances '", instances_path, "': cannot write the file");
@@ -391,17 +457,62 @@ int main(int argc, char** argv) {
                 det_boxes = g2l::eval::run_detector_on(*det, ds, 0.05f, det_mirror);
                 eo.detections = &det_boxes;
             }
+            eo.hypotheses = hyp_opt;
             std::vector<g2l::eval::InstanceResult> inst;
+            std::vector<g2l::eval::HypothesisRecord> hyps;
             const auto r = g2l::eval::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo,
-                                                          &inst);
+                                                          &inst, &hyps);
             std::printf("## %s (%s boxes, %s crop)\n\n%s\n", sets_to_eval[i].first.c_str(),
                         boxes == "gt"    ? "GT"
                         : boxes == "det" ? ("detector " + detector_path).c_str()
                                          : ("detection file " + detections_path).c_str(),
                         m.crop.c_str(), g2l::eval::report_markdown(r).c_str());
-            write_outputs(ds, inst, csv_out.is_open() ? &csv_out : nullptr,
+            write_outputs(ds, inst, hyps, csv_out.is_open() ? &csv_out : nullptr,
                           inst_out.is_open() ? &inst_out : nullptr, vis_dir,
                           sets_to_eval[i].first);
+            for (const auto& h : hyps)
+                if (hyp_out.is_open())
+                    hyp_out << json{{"set", sets_to_eval[i].first}, {"scene", h.scene},
+                                    {"image_id", h.image_id}, {"obj_id", h.obj_id},
+                                    {"score", h.score}, {"det_score", h.det_score},
+                                    {"verdict", h.verdict}, {"rival", h.rival},
+                                    {"right", h.right}, {"pose_right", h.pose_right},
+                                    {"features", h.features},
+                                    {"box", {h.box.x, h.box.y, h.box.w, h.box.h}}}
+                                   .dump()
+                            << "\n";
+            if (!fit_score.empty() && i == 0) {
+                const g2l::infer::ScoreModel sm = g2l::eval::fit_score_model(hyps);
+                std::ofstream f(fit_score);
+                f << json{{"features", {"bias", "explained", "violation", "occlusion", "seg_agree",
+                                        "support_x_seg_agree", "ln_det_score", "borrowed"}},
+                          {"w", sm.w}}
+                         .dump(2)
+                  << "\n";
+                G2L_CHECK(f.good(), "--fit-score '", fit_score, "': cannot write the file");
+                std::printf("score model fitted on %s: w = {", sets_to_eval[i].first.c_str());
+                for (size_t k = 0; k < sm.w.size(); ++k) std::printf("%s%.4f", k ? ", " : "", sm.w[k]);
+                std::printf("} (%s)\n\n", fit_score.c_str());
+            }
+            if (!pr_png.empty() && i == 0) {  // the first set's curve (a config may have more)
+                const auto curve = g2l::eval::pr_curve(inst);
+                std::vector<std::pair<double, double>> pts;
+                std::printf("Precision-recall over the verified score (%s):\n\n"
+                            "| score >= | precision (%%) | recall (%%) |\n|---|---|---|\n",
+                            sets_to_eval[i].first.c_str());
+                size_t step = std::max<size_t>(1, curve.size() / 12);
+                for (size_t k = 0; k < curve.size(); ++k) {
+                    pts.push_back({curve[k].recall, curve[k].precision});
+                    if (k % step == 0 || k + 1 == curve.size())
+                        std::printf("| %.3f | %.1f | %.1f |\n", curve[k].threshold,
+                                    curve[k].precision, curve[k].recall);
+                }
+                g2l::data::Image plot = g2l::data::plot_curves({pts}, {{{40, 90, 255}}}, 100.0);
+                g2l::data::draw_text(&plot, 40, 20, "precision (%) vs recall (%), ADD-S < 0.1 d",
+                                     {255, 255, 255});
+                g2l::data::save_png(pr_png, plot);
+                std::printf("\nwrote %s\n\n", pr_png.c_str());
+            }
             json_all += (i ? "," : "") + g2l::eval::report_json(r);
         }
         json_all += "]";

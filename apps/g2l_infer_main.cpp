@@ -96,6 +96,20 @@ int main(int argc, char** argv) {
         ->check(CLI::IsMember({"none", "icp", "turns"}));
     app.add_option("--meshes", meshes, "folder of the objects' meshes (obj_000005.ply ...; BOP "
                                        "models/): the poses are refined against them (--refine)");
+    double min_pose_score = 0;
+    app.add_option("--min-pose-score", min_pose_score,
+                   "poses whose depth-verified score (the probability that the pose is right, "
+                   "with --meshes) is below this are rejected: left out with --detector, marked "
+                   "\"low score\" with given boxes")
+        ->check(CLI::Range(0.0, 1.0));
+    int max_instances = 3;
+    app.add_option("--max-instances", max_instances,
+                   "--detector: peaks (instances) of one object tried per frame")
+        ->check(CLI::Range(1, 1000));
+    bool keep_rejected = false;
+    app.add_flag("--keep-rejected", keep_rejected,
+                 "--detector: also list the rejected hypotheses (status low score, duplicate or "
+                 "overlap, with the winning pose's index in \"rival\")");
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_infer"); rc >= 0) return rc;
@@ -173,6 +187,9 @@ int main(int argc, char** argv) {
                      : refine == "turns" ? g2l::Refinement::turns
                                          : g2l::Refinement::none;
         opt.meshes = meshes;
+        opt.min_pose_score = min_pose_score;
+        opt.max_instances = max_instances;
+        opt.keep_rejected = true;  // drawn by --vis; left out of the JSON unless asked
         if (!detector_path.empty() && app.count("--min-score")) opt.min_detection_score = min_score;
         if (app.count("--model") == 0) model = default_model(model);
         g2l::PoseEstimator est(model, opt);
@@ -189,8 +206,15 @@ int main(int argc, char** argv) {
         f.depth_scale = depth_scale;
         f.K = K;
         if (!rgb.data.empty()) f.rgb = rgb.data.data();
-        if (!detector_path.empty()) boxes = est.detect(f);
-        const std::vector<g2l::ObjectPose> poses = est.estimate(f, boxes);
+        // With the detector: the hypotheses road (several instances per object, each pose
+        // verified, duplicates and overlaps rejected); with boxes: one pose per box.
+        const std::vector<g2l::ObjectPose> poses =
+            detector_path.empty() ? est.estimate(f, boxes) : est.estimate(f);
+        auto rejected = [](const g2l::ObjectPose& p) {
+            return p.status == g2l::PoseStatus::rejected_duplicate ||
+                   p.status == g2l::PoseStatus::rejected_overlap ||
+                   (p.status == g2l::PoseStatus::rejected_low_score);
+        };
 
         json out;
         out["model"] = model;
@@ -200,8 +224,16 @@ int main(int argc, char** argv) {
         out["objects"] = json::array();
         for (size_t i = 0; i < poses.size(); ++i) {
             const g2l::ObjectPose& p = poses[i];
+            // Rejected hypotheses of the detector road only with --keep-rejected (a rejected
+            // given box keeps its place: one entry per box).
+            if (!detector_path.empty() && rejected(p) && !keep_rejected) continue;
+            const std::array<int, 4> bb = detector_path.empty()
+                                              ? std::array<int, 4>{{boxes[i].x, boxes[i].y,
+                                                                    boxes[i].w, boxes[i].h}}
+                                              : p.bbox;
             json o = {{"obj_id", p.obj_id}, {"status", g2l::to_string(p.status)}, {"ok", p.ok()},
-                      {"score", p.score}, {"bbox", {boxes[i].x, boxes[i].y, boxes[i].w, boxes[i].h}},
+                      {"score", p.score}, {"detection_score", p.detection_score},
+                      {"verified", p.verified}, {"bbox", bb},
                       {"num_crop_points", p.num_crop_points},
                       {"num_object_points", p.num_object_points},
                       {"timings_ms", {{"crop", p.timings.crop_ms},
@@ -212,6 +244,10 @@ int main(int argc, char** argv) {
                                       {"total", p.timings.total_ms}}}};
             // Always say whether the pose went through the refinement, and why not when it was
             // asked for and did not (no mesh of this object in --meshes).
+            if (p.verified)
+                o["check"] = {{"explained", p.check.explained}, {"violation", p.check.violation},
+                              {"occlusion", p.check.occlusion}, {"seg_agree", p.check.seg_agree}};
+            if (p.rival >= 0) o["rival"] = p.rival;
             o["refined"] = p.refined;
             if (p.refined) o["fit_mm"] = p.fit_mm;
             if (p.ok() && !p.refined && refining) {
@@ -220,7 +256,7 @@ int main(int argc, char** argv) {
                 o["note"] = g2l::cat("not refined: no ", mesh_name, " in --meshes '",
                                      opt.meshes, "'");
             }
-            if (p.ok()) {
+            if (p.ok() || rejected(p)) {
                 o["R"] = p.R;
                 o["t"] = p.t;
             }
@@ -237,8 +273,15 @@ int main(int argc, char** argv) {
             }
             g2l::geom::Intrinsics gk;
             gk.fx = K.fx, gk.fy = K.fy, gk.cx = K.cx, gk.cy = K.cy, gk.width = w, gk.height = h;
-            for (const g2l::ObjectPose& p : poses) {
-                if (!p.ok()) continue;
+            // Reported poses blue with their id and score; rejected hypotheses red (drawn
+            // first, underneath) with the reason.
+            std::vector<const g2l::ObjectPose*> order;
+            for (const g2l::ObjectPose& p : poses)
+                if (rejected(p)) order.push_back(&p);
+            for (const g2l::ObjectPose& p : poses)
+                if (p.ok()) order.push_back(&p);
+            for (const g2l::ObjectPose* pp : order) {
+                const g2l::ObjectPose& p = *pp;
                 const std::vector<double> kp = est.keypoints(p.obj_id);
                 Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e30), hi = -lo;
                 for (size_t k = 0; k + 2 < kp.size(); k += 3)
@@ -249,7 +292,20 @@ int main(int argc, char** argv) {
                     for (int c = 0; c < 3; ++c) pose.R(r, c) = p.R[size_t(r * 3 + c)];
                     pose.t[r] = p.t[size_t(r)];
                 }
-                g2l::data::draw_box3d(&im, lo, hi, pose, gk, {40, 90, 255});
+                const bool ok = p.ok();
+                g2l::data::draw_box3d(&im, lo, hi, pose, gk,
+                                      ok ? g2l::data::Rgb{40, 90, 255} : g2l::data::Rgb{230, 40, 40},
+                                      ok ? 2 : 1);
+                char label[96];
+                if (ok)
+                    std::snprintf(label, sizeof label, "%d %.2f", p.obj_id, p.score);
+                else
+                    std::snprintf(label, sizeof label, "%d %s %.2f", p.obj_id,
+                                  g2l::to_string(p.status), p.score);
+                const std::array<int, 4>& b = p.bbox;
+                g2l::data::draw_text(&im, b[0], ok ? std::max(10, b[1] - 3) : b[1] + b[3] - 2,
+                                     label, ok ? g2l::data::Rgb{120, 170, 255}
+                                               : g2l::data::Rgb{255, 120, 120});
             }
             g2l::data::save_png(vis_path, im);
         }

@@ -6,6 +6,8 @@
 
 #include "core/error.h"
 
+#include <opencv2/imgproc.hpp>
+
 namespace g2l::data {
 
 namespace {
@@ -106,6 +108,30 @@ Image plot_curves(const std::vector<std::vector<std::pair<double, double>>>& cur
             draw_line(&im, X(curves[c][i - 1].first), Y(curves[c][i - 1].second),
                       X(curves[c][i].first), Y(curves[c][i].second), colors[c], 2);
     return im;
+}
+
+void draw_rect(Image* image, double x, double y, double w, double h, const Rgb& color,
+               int thickness) {
+    draw_line(image, x, y, x + w, y, color, thickness);
+    draw_line(image, x + w, y, x + w, y + h, color, thickness);
+    draw_line(image, x + w, y + h, x, y + h, color, thickness);
+    draw_line(image, x, y + h, x, y, color, thickness);
+}
+
+void draw_text(Image* image, int x, int y, const std::string& text, const Rgb& color,
+               double scale) {
+    G2L_CHECK(image && image->channels == 3 && image->w > 0 && image->h > 0 &&
+                  image->data.size() == size_t(image->w) * size_t(image->h) * 3,
+              "draw_text: need a 3-channel image of matching size");
+    G2L_CHECK(std::isfinite(scale) && scale > 0, "draw_text: scale must be > 0, got ", scale);
+    cv::Mat m(image->h, image->w, CV_8UC3, image->data.data());
+    int base = 0;
+    const cv::Size sz = cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &base);
+    cv::rectangle(m, cv::Point(x - 1, y - sz.height - 2), cv::Point(x + sz.width + 1, y + base),
+                  cv::Scalar(0, 0, 0), cv::FILLED);
+    // The image is RGB; OpenCV only writes the three bytes in the order given.
+    cv::putText(m, text, cv::Point(x, y), cv::FONT_HERSHEY_SIMPLEX, scale,
+                cv::Scalar(color[0], color[1], color[2]), 1, cv::LINE_AA);
 }
 
 }  // namespace g2l::data

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <string>
 #include <vector>
 
 #include "data/dataset.h"
@@ -24,6 +25,16 @@ void draw_line(Image* image, double u0, double v0, double u1, double v1, const R
 void draw_box3d(Image* image, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
                 const geom::Pose& pose, const geom::Intrinsics& K, const Rgb& color,
                 int thickness = 2);
+
+/// Draws the outline of the pixel box [x, y, x + w) x [y, y + h) (clipped to the image).
+void draw_rect(Image* image, double x, double y, double w, double h, const Rgb& color,
+               int thickness = 1);
+
+/// Writes `text` (ASCII; OpenCV's Hershey simplex font, `scale` 0.4 is ~9 px tall) with its
+/// baseline's left end at (x, y), on a dark backing so it reads on any image; clipped to the
+/// image. Throws g2l::Error unless image is 3-channel and w x h x 3 bytes.
+void draw_text(Image* image, int x, int y, const std::string& text, const Rgb& color,
+               double scale = 0.4);
 
 /// A 3-channel image of a depth map (mm): near = bright, no depth = black.
 Image depth_to_rgb(const std::vector<float>& depth_mm, int w, int h);

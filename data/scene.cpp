@@ -108,6 +108,11 @@ void validate(const SceneConfig& c, const std::string& where) {
     G2L_CHECK(c.targets_min >= 0 && c.targets_min <= c.targets_max && c.targets_max >= 1, where,
               ": need 0 <= targets_min <= targets_max and targets_max >= 1, got ", c.targets_min,
               " and ", c.targets_max);
+    G2L_CHECK(c.kinds_min >= 0 && c.kinds_min <= c.kinds_max, where,
+              ": need 0 <= kinds_min <= kinds_max, got ", c.kinds_min, " and ", c.kinds_max);
+    G2L_CHECK(c.kinds_max == 0 || (c.kinds_min >= 1 && !c.unique_targets), where,
+              ": kinds_min/kinds_max (", c.kinds_min, ", ", c.kinds_max, ") draw copies of a few "
+              "objects: they need kinds_min >= 1 and unique_targets false");
     G2L_CHECK(c.distractors_min >= 0 && c.distractors_min <= c.distractors_max, where,
               ": need 0 <= distractors_min <= distractors_max, got ", c.distractors_min, " and ",
               c.distractors_max);
@@ -236,6 +241,15 @@ void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads
 
     // Which objects: targets (annotated, instance ids 1..n) then distractors (id -1).
     std::vector<int> pool = targets_;
+    if (cfg_.kinds_max > 0) {  // a bin: a few kinds, the targets copies of them
+        const int kinds = std::min<int>(int(rng.randint(cfg_.kinds_min, cfg_.kinds_max + 1)),
+                                        int(pool.size()));
+        for (int k = 0; k < kinds; ++k) {
+            const int j = k + int(rng.below(uint64_t(pool.size()) - uint64_t(k)));
+            std::swap(pool[size_t(k)], pool[size_t(j)]);
+        }
+        pool.resize(size_t(kinds));
+    }
     int n_targets = int(rng.randint(cfg_.targets_min, cfg_.targets_max + 1));
     if (cfg_.unique_targets) n_targets = std::min<int>(n_targets, int(pool.size()));
     std::vector<int> chosen;

@@ -27,6 +27,11 @@ struct SceneConfig {
     std::vector<int> target_obj_ids;       ///< annotated objects; empty = every model given
     int targets_min = 1, targets_max = 3;  ///< annotated instances per frame
     bool unique_targets = true;            ///< each target id at most once per frame
+    /// Bin scenes: when kinds_max > 0, each frame first draws between kinds_min and kinds_max
+    /// distinct target objects (without replacement), and its targets are copies of those
+    /// (unique_targets must be false): several identical parts per frame, as in a bin. 0 = off
+    /// (the draws of older configs are unchanged).
+    int kinds_min = 0, kinds_max = 0;
     std::vector<int> distractor_obj_ids;   ///< empty = every given model that is not a target
     int distractors_min = 0, distractors_max = 2;  ///< unannotated clutter objects per frame
     double z_min = 500, z_max = 1500;      ///< object centre depth range (mm)

@@ -66,6 +66,8 @@ SceneConfig parse_scene_config(const std::string& json_text, const std::string& 
     r.integer("targets_min", c.targets_min);
     r.integer("targets_max", c.targets_max);
     r.boolean("unique_targets", c.unique_targets);
+    r.integer("kinds_min", c.kinds_min);
+    r.integer("kinds_max", c.kinds_max);
     r.ints("distractor_obj_ids", c.distractor_obj_ids);
     r.integer("distractors_min", c.distractors_min);
     r.integer("distractors_max", c.distractors_max);
@@ -135,6 +137,8 @@ std::string scene_config_to_json(const SceneConfig& c) {
     j["targets_min"] = c.targets_min;
     j["targets_max"] = c.targets_max;
     j["unique_targets"] = c.unique_targets;
+    j["kinds_min"] = c.kinds_min;
+    j["kinds_max"] = c.kinds_max;
     j["distractor_obj_ids"] = c.distractor_obj_ids;
     j["distractors_min"] = c.distractors_min;
     j["distractors_max"] = c.distractors_max;

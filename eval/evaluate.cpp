@@ -9,6 +9,7 @@
 #include <limits>
 #include <memory>
 #include <tuple>
+#include <Eigen/Cholesky>
 #include <nlohmann/json.hpp>
 
 #include "core/autograd.h"
@@ -70,6 +71,7 @@ struct Acc {
     double seg_iou = 0;
     int seg_n = 0;
     int det_n = 0, det_hits = 0;  // instances with a det_iou, of those IoU >= 0.5
+    int reported = 0, reported_right = 0, box_hits = 0, false_pos = 0;  // the hypotheses road
 };
 
 
@@ -107,19 +109,25 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
 EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                               const std::map<int, int>& class_of,
                               const std::vector<std::vector<Eigen::Vector3f>>& keypoints,
-                              const EvalOptions& opt, std::vector<InstanceResult>* instances_out) {
-    // Detector boxes: the best-scoring detection per (scene, image, object).
-    std::map<std::tuple<int, int, int>, const data::Detection*> best_det;
+                              const EvalOptions& opt, std::vector<InstanceResult>* instances_out,
+                              std::vector<HypothesisRecord>* hyps_out) {
+    // Detector boxes: each frame's detections, the hypotheses road's candidates.
+    std::map<std::pair<int, int>, std::vector<infer::Candidate>> frame_dets;
     if (opt.detections) {
         for (size_t i = 0; i < opt.detections->size(); ++i) {
             const data::Detection& d = (*opt.detections)[i];
             G2L_CHECK(d.scene_id >= 0 && d.image_id >= 0, "evaluate: detection ", i,
                       " (object ", d.obj_id, ") has no scene_id / image_id: evaluation needs both");
-            const auto k = std::make_tuple(d.scene_id, d.image_id, d.obj_id);
-            auto it = best_det.find(k);
-            if (it == best_det.end() || d.score > it->second->score) best_det[k] = &d;
+            infer::Candidate c;
+            c.obj_id = c.det_obj_id = d.obj_id;
+            c.box = {int(std::lround(d.x)), int(std::lround(d.y)), int(std::lround(d.w)),
+                     int(std::lround(d.h))};
+            c.peak_x = d.peak_x, c.peak_y = d.peak_y;
+            c.det_score = d.score;
+            frame_dets[{d.scene_id, d.image_id}].push_back(c);
         }
     }
+    if (hyps_out) hyps_out->clear();
     // The frame pipeline the inference library runs (infer/frame_pipeline.h): the same crop,
     // networks and refinement; evaluation adds only the ground truth and the oracle inputs.
     infer::PipelineModel pm;
@@ -151,8 +159,227 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
     std::vector<std::vector<uint8_t>> gt_obj;  // per request: GT object flags of its crop rows
     std::vector<Eigen::Vector3f> gt_t;
     std::vector<infer::Oracle> oracles;
+    // Once per object: its mesh in the pipeline, its metric points and symmetries.
+    auto prepare = [&](int obj_id) {
+        if (model_geom.count(obj_id)) return;
+        const data::ObjectModel& om = ds.model(obj_id);
+        const geom::Mesh& mesh = ds.load_model_mesh(obj_id);
+        pipe.add_mesh(obj_id, mesh, om.info);
+        const int64_t nv = mesh.vertices.rows();
+        const int64_t keep =
+            opt.max_model_points > 0 ? std::min<int64_t>(nv, opt.max_model_points) : nv;
+        ObjGeom g;
+        g.pts.resize(keep, 3);
+        for (int64_t i = 0; i < keep; ++i) g.pts.row(i) = mesh.vertices.row(i * nv / keep);
+        g.syms = geom::geometric_symmetries(*pipe.mesh(obj_id)->tree, om.info);
+        meta[obj_id] = {om.name, om.info.diameter, om.info.symmetric,
+                        int(std::max<size_t>(1, g.syms.size()))};
+        model_geom[obj_id] = std::move(g);
+    };
+    // The hypotheses road may pose any object of the model the dataset has a mesh of (a peak is
+    // also tried as the objects of a like shape).
+    if (opt.detections)
+        for (const auto& [id, om] : ds.models())
+            if (class_of.count(id)) prepare(id), (void)om;
+    std::vector<infer::Hypothesis> hyps;
     for (const data::Frame& f : ds.frames()) {
         if (opt.max_instances > 0 && rep.instances >= opt.max_instances) break;
+        if (opt.detections) {  // the library's road, matched to the ground truth afterwards
+            int scene_id = -1;
+            try {
+                scene_id = std::stoi(f.scene);
+            } catch (const std::exception&) {
+                G2L_CHECK(false, "evaluate: scene '", f.scene, "' is not a number (BOP scene ids "
+                          "are), so detections cannot be matched to it");
+            }
+            // Every GT instance of a known object takes part in the matching; those below
+            // min_visib_fract (or past max_instances) are not counted: an estimate matched to
+            // one is neither right nor a false positive (BOP's rule).
+            std::vector<const data::Instance*> gts;
+            std::vector<uint8_t> counted;
+            for (const data::Instance& inst : f.instances) {
+                if (!class_of.count(inst.obj_id)) continue;
+                prepare(inst.obj_id);
+                const bool c = inst.visible_enough(opt.min_visib_fract) &&
+                               !(opt.max_instances > 0 && rep.instances >= opt.max_instances);
+                gts.push_back(&inst);
+                counted.push_back(c);
+                rep.instances += c;
+            }
+            int w = 0, h = 0;
+            const std::vector<float> depth = ds.load_depth_mm(f, &w, &h);
+            geom::Intrinsics K = f.K;
+            K.width = w;
+            K.height = h;
+            const auto fd = frame_dets.find({scene_id, f.image_id});
+            const std::vector<infer::Candidate> cands =
+                fd == frame_dets.end() ? std::vector<infer::Candidate>{}
+                                       : pipe.candidates(fd->second, opt.hypotheses);
+            pipe.hypotheses(depth.data(), K, cands, opt.hypotheses, &hyps);
+            for (const infer::Hypothesis& hy : hyps) {
+                const infer::PoseOutcome& o = hy.outcome;
+                t_crop += o.ms_crop, t_seg += o.ms_seg, t_t += o.ms_t, t_rot += o.ms_rot;
+                t_refine += o.ms_refine;
+            }
+            // BOP matching: accepted poses by score (hyps lists them first, best first).
+            const size_t ng = gts.size();
+            std::vector<int> est_of(ng, -1);     // GT -> hypothesis index
+            std::vector<int> gt_of(hyps.size(), -1);
+            std::vector<uint8_t> right(hyps.size(), 0);
+            auto adds_of = [&](size_t hi, size_t g) {
+                return geom::adds(hyps[hi].outcome.pose, gts[g]->pose,
+                                  model_geom.at(gts[g]->obj_id).pts);
+            };
+            for (size_t hi = 0; hi < hyps.size() && hyps[hi].accepted(); ++hi) {
+                int best = -1;
+                double best_err = 0;
+                for (size_t g = 0; g < ng; ++g) {
+                    if (est_of[g] >= 0 || gts[g]->obj_id != hyps[hi].cand.obj_id) continue;
+                    const double e = adds_of(hi, g);
+                    if (geom::correct_at(e, meta.at(gts[g]->obj_id).diameter) &&
+                        (best < 0 || e < best_err))
+                        best = int(g), best_err = e;
+                }
+                if (best >= 0) est_of[size_t(best)] = int(hi), gt_of[hi] = best, right[hi] = 1;
+            }
+            // Left-over instances take the nearest left-over pose of their object within a
+            // diameter (a wrong pose, its errors reported), most visible instances first.
+            for (size_t hi = 0; hi < hyps.size() && hyps[hi].accepted(); ++hi) {
+                if (gt_of[hi] >= 0) continue;
+                int best = -1;
+                double best_d = 0;
+                for (size_t g = 0; g < ng; ++g) {
+                    if (est_of[g] >= 0 || gts[g]->obj_id != hyps[hi].cand.obj_id) continue;
+                    const double d = (hyps[hi].outcome.pose.t - gts[g]->pose.t).norm();
+                    if (d < meta.at(gts[g]->obj_id).diameter && (best < 0 || d < best_d))
+                        best = int(g), best_d = d;
+                }
+                if (best >= 0) est_of[size_t(best)] = int(hi), gt_of[hi] = best;
+            }
+            // Box hits (det_precision_50): each accepted pose's box against the visible GT
+            // boxes of its object, one box each, by score.
+            std::vector<uint8_t> box_taken(ng, 0), box_hit(hyps.size(), 0);
+            std::vector<double> box_iou_of(hyps.size(), 0.0);
+            for (size_t hi = 0; hi < hyps.size() && hyps[hi].accepted(); ++hi) {
+                const geom::Box2i& b = hyps[hi].outcome.box;
+                int best = -1;
+                double best_iou = 0.5;
+                for (size_t g = 0; g < ng; ++g) {
+                    if (box_taken[g] || gts[g]->obj_id != hyps[hi].cand.obj_id) continue;
+                    const geom::Box2i gb = gts[g]->box();
+                    const double iou = geom::box_iou(b.x, b.y, b.w, b.h, gb.x, gb.y, gb.w, gb.h);
+                    if (iou >= best_iou) best = int(g), best_iou = iou;
+                }
+                if (best >= 0) {
+                    box_taken[size_t(best)] = 1;
+                    // A box that only finds an uncounted instance is neither hit nor miss.
+                    box_hit[hi] = counted[size_t(best)] ? 1 : 2;
+                }
+            }
+            for (size_t g = 0; g < ng; ++g) {
+                if (!counted[g]) continue;
+                const data::Instance& inst = *gts[g];
+                InstanceResult r;
+                r.obj_id = inst.obj_id;
+                r.scene = f.scene;
+                r.image_id = f.image_id;
+                r.inst_index = int(&inst - f.instances.data());
+                r.gt = inst.pose;
+                r.det_iou = 0;
+                r.box = geom::clip_box(inst.box(), w, h);
+                if (est_of[g] < 0) {
+                    r.status = cands.empty() ? "no detection" : "no pose";
+                    results.push_back(r);
+                    continue;
+                }
+                const infer::Hypothesis& hy = hyps[size_t(est_of[g])];
+                const infer::PoseOutcome& o = hy.outcome;
+                const ObjGeom& og = model_geom.at(inst.obj_id);
+                r.status = infer::to_string(o.status);
+                r.box = o.box;
+                const geom::Box2i gb = inst.box();
+                r.det_iou = geom::box_iou(o.box.x, o.box.y, o.box.w, o.box.h, gb.x, gb.y, gb.w,
+                                          gb.h);
+                r.score = hy.score;
+                r.ms = o.ms_crop + o.ms_seg + o.ms_t + o.ms_rot + o.ms_refine;
+                r.refine_hyp = o.refine_hypothesis;
+                r.refine_cluster = o.refine_cluster;
+                r.fit_mm = o.fit_mm;
+                r.est = o.pose;
+                r.found = true;
+                r.reported = true;
+                r.right = right[size_t(est_of[g])];
+                r.box_hit = box_hit[size_t(est_of[g])] == 1;
+                r.det_score = hy.cand.det_score;
+                if (hy.verified) {
+                    r.verify_score = hy.check.score;
+                    r.explained = hy.check.explained;
+                    r.violation = hy.check.violation;
+                    r.seg_agree = hy.check.seg_agree;
+                }
+                r.add_mm = geom::add(o.pose, inst.pose, og.pts);
+                r.adds_mm = geom::adds(o.pose, inst.pose, og.pts);
+                r.addsym_mm = geom::add_sym(o.pose, inst.pose, og.pts, og.syms);
+                r.rot_sym_deg = geom::rotation_error_sym_deg(o.pose.R, inst.pose.R, og.syms);
+                r.rot_deg = geom::rotation_error_deg(o.pose.R, inst.pose.R);
+                r.trans_mm = geom::translation_error(o.pose.t, inst.pose.t);
+                results.push_back(r);
+            }
+            for (size_t hi = 0; hi < hyps.size(); ++hi) {
+                const infer::Hypothesis& hy = hyps[hi];
+                if (hyps_out) {
+                    HypothesisRecord rec;
+                    rec.scene = f.scene;
+                    rec.image_id = f.image_id;
+                    rec.obj_id = hy.cand.obj_id;
+                    rec.score = hy.score;
+                    rec.det_score = hy.cand.det_score;
+                    rec.verdict = infer::to_string(hy.verdict);
+                    rec.rival = hy.rival;
+                    rec.right = right[hi] && counted[size_t(gt_of[hi])];
+                    rec.box = hy.outcome.box;
+                    rec.posed = hy.outcome.ok();
+                    if (rec.posed) {
+                        rec.est = hy.outcome.pose;
+                        for (size_t g = 0; g < ng; ++g)
+                            rec.pose_right = rec.pose_right ||
+                                             (gts[g]->obj_id == hy.cand.obj_id &&
+                                              geom::correct_at(adds_of(hi, g),
+                                                               meta.at(hy.cand.obj_id).diameter));
+                    }
+                    rec.verified = hy.verified;
+                    if (hy.verified)
+                        rec.features = infer::ScoreModel::features(
+                            hy.check, hy.cand.det_score, hy.cand.det_obj_id != hy.cand.obj_id);
+                    hyps_out->push_back(rec);
+                }
+                // An accepted pose matched to no instance is a false positive; one matched to
+                // an uncounted instance (or whose box found only one) is left out.
+                if (!hy.accepted() || gt_of[hi] >= 0 || box_hit[hi] == 2) continue;
+                InstanceResult r;
+                r.obj_id = hy.cand.obj_id;
+                r.scene = f.scene;
+                r.image_id = f.image_id;
+                r.inst_index = -1;
+                r.status = "false positive";
+                r.score = hy.score;
+                r.box = hy.outcome.box;
+                r.est = hy.outcome.pose;
+                r.found = true;
+                r.reported = true;
+                r.false_positive = true;
+                r.box_hit = box_hit[hi] == 1;
+                r.det_score = hy.cand.det_score;
+                if (hy.verified) {
+                    r.verify_score = hy.check.score;
+                    r.explained = hy.check.explained;
+                    r.violation = hy.check.violation;
+                    r.seg_agree = hy.check.seg_agree;
+                }
+                results.push_back(r);
+            }
+            continue;
+        }
         insts.clear();
         for (const data::Instance& inst : f.instances) {
             if (!class_of.count(inst.obj_id) || !inst.visible_enough(opt.min_visib_fract)) continue;
@@ -171,20 +398,7 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
         req_of.clear();
         for (size_t k = 0; k < insts.size(); ++k) {
             const data::Instance& inst = *insts[k];
-            const data::ObjectModel& om = ds.model(inst.obj_id);
-            if (!model_geom.count(inst.obj_id)) {  // once per object
-                const geom::Mesh& mesh = ds.load_model_mesh(inst.obj_id);
-                pipe.add_mesh(inst.obj_id, mesh, om.info);
-                const int64_t nv = mesh.vertices.rows();
-                const int64_t keep = opt.max_model_points > 0 ? std::min<int64_t>(nv, opt.max_model_points) : nv;
-                ObjGeom g;
-                g.pts.resize(keep, 3);
-                for (int64_t i = 0; i < keep; ++i) g.pts.row(i) = mesh.vertices.row(i * nv / keep);
-                g.syms = geom::geometric_symmetries(*pipe.mesh(inst.obj_id)->tree, om.info);
-                meta[inst.obj_id] = {om.name, om.info.diameter, om.info.symmetric,
-                                     int(std::max<size_t>(1, g.syms.size()))};
-                model_geom[inst.obj_id] = std::move(g);
-            }
+            prepare(inst.obj_id);
             InstanceResult& r = res[k];
             r.obj_id = inst.obj_id;
             r.scene = f.scene;
@@ -194,29 +408,6 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
             infer::PoseRequest q;
             q.obj_id = inst.obj_id;
             q.box = inst.box();
-            if (opt.detections) {
-                int scene_id = -1;
-                try {
-                    scene_id = std::stoi(f.scene);
-                } catch (const std::exception&) {
-                    G2L_CHECK(false, "evaluate: scene '", f.scene, "' is not a number (BOP scene ids "
-                              "are), so detections cannot be matched to it");
-                }
-                const auto it = best_det.find(std::make_tuple(scene_id, f.image_id, inst.obj_id));
-                r.det_iou = 0;
-                if (it == best_det.end()) {
-                    r.status = "no detection";
-                    r.box = geom::clip_box(q.box, w, h);
-                    continue;
-                }
-                const data::Detection& d = *it->second;
-                q.box = {int(std::lround(d.x)), int(std::lround(d.y)), int(std::lround(d.w)),
-                         int(std::lround(d.h))};
-                r.score = d.score;
-                const geom::Box2i gt = inst.box();
-                r.det_iou = geom::box_iou(d.x, d.y, d.w, d.h, gt.x, gt.y, gt.w, gt.h);
-                if (d.peak_x >= 0 && d.peak_y >= 0) q.peak_x = d.peak_x, q.peak_y = d.peak_y;
-            }
             if (opt.centre_from_mask && opt.crop != infer::CropKind::frustum) {
                 Eigen::Vector3d c;
                 const geom::Box2i box = geom::clip_box(q.box, w, h);
@@ -314,6 +505,15 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
         G2L_CHECK(m->second.diameter > 0, "aggregate: object ", r.obj_id, " has diameter ",
                   m->second.diameter);
         Acc& a = acc[r.obj_id];
+        if (r.reported) {
+            a.reported++;
+            a.reported_right += r.right;
+            a.box_hits += r.box_hit;
+        }
+        if (r.false_positive) {  // no instance: only the precisions count it
+            a.false_pos++;
+            continue;
+        }
         a.count++;
         if (r.seg_iou >= 0) {
             a.seg_iou += r.seg_iou;
@@ -343,9 +543,21 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
         a.trans += r.trans_mm;
     }
     EvalReport rep;
-    rep.instances = int(results.size());
+    // The hypotheses road reports poses (precisions); GT boxes do not (-1).
+    const bool any_reported =
+        std::any_of(results.begin(), results.end(), [](const InstanceResult& r) {
+            return r.false_positive || (r.reported || (r.det_iou >= 0 && !r.found));
+        });
+    rep.instances = int(std::count_if(results.begin(), results.end(),
+                                      [](const InstanceResult& r) { return !r.false_positive; }));
     Acc all;
     for (auto& [id, a] : acc) {
+        if (a.count == 0) {  // only false positives: no row (the average pools them)
+            all.reported += a.reported;
+            all.box_hits += a.box_hits;
+            all.false_pos += a.false_pos;
+            continue;
+        }
         ObjectScores s;
         s.obj_id = id;
         s.name = meta.at(id).name;
@@ -364,12 +576,20 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
         s.num_symmetries = meta.at(id).num_symmetries;
         s.seg_iou = a.seg_n ? a.seg_iou / a.seg_n : -1;
         s.det_recall_50 = a.det_n ? 100.0 * a.det_hits / a.det_n : -1;
+        s.reported = a.reported;
+        s.false_positives = a.false_pos;
+        if (any_reported) {
+            s.pose_precision = a.reported ? 100.0 * a.reported_right / a.reported : 0.0;
+            s.det_precision_50 = a.reported ? 100.0 * a.box_hits / a.reported : 0.0;
+        }
         rep.objects.push_back(s);
         all.adds_m.insert(all.adds_m.end(), a.adds_m.begin(), a.adds_m.end());
         all.add_m.insert(all.add_m.end(), a.add_m.begin(), a.add_m.end());
         all.count += a.count; all.misses += a.misses; all.found += a.found;
         all.rot += a.rot; all.trans += a.trans;
         all.det_n += a.det_n; all.det_hits += a.det_hits;
+        all.reported += a.reported; all.reported_right += a.reported_right;
+        all.box_hits += a.box_hits; all.false_pos += a.false_pos;
     }
     ObjectScores& avg = rep.average;
     avg.name = "average";
@@ -392,6 +612,12 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
     }
     avg.seg_iou = seg_objects ? seg_sum / seg_objects : -1;
     avg.det_recall_50 = all.det_n ? 100.0 * all.det_hits / all.det_n : -1;
+    avg.reported = all.reported;
+    avg.false_positives = all.false_pos;
+    if (any_reported) {  // pooled over every reported pose
+        avg.pose_precision = all.reported ? 100.0 * all.reported_right / all.reported : 0.0;
+        avg.det_precision_50 = all.reported ? 100.0 * all.box_hits / all.reported : 0.0;
+    }
     avg.mean_rot_err_deg = all.found ? all.rot / all.found : 0;
     avg.mean_trans_err_mm = all.found ? all.trans / all.found : 0;
     return rep;
@@ -452,6 +678,15 @@ std::string report_markdown(const EvalReport& r) {
                       r.average.det_recall_50);
         s += line;
     }
+    if (r.average.pose_precision >= 0) {  // the hypotheses road: what was reported
+        std::snprintf(line, sizeof line,
+                      "\nReported poses (accepted hypotheses): %d, of which %d match no instance. "
+                      "Pose precision (right at ADD-S < 0.1 d): **%.1f%%**; box precision (IoU >= "
+                      "0.5 with a visible GT box): **%.1f%%**\n",
+                      r.average.reported, r.average.false_positives, r.average.pose_precision,
+                      r.average.det_precision_50);
+        s += line;
+    }
     const double total = r.ms_crop + r.ms_seg + r.ms_t + r.ms_rot + r.ms_refine;
     std::snprintf(line, sizeof line,
                   "\nTime per instance (ms, mean of %d; the paper's Table 5 stages):\n\n"
@@ -481,7 +716,15 @@ std::string report_json(const EvalReport& r) {
                                                          : nlohmann::json(nullptr)},
                               {"det_recall_50", o.det_recall_50 >= 0
                                                     ? nlohmann::json(o.det_recall_50)
-                                                    : nlohmann::json(nullptr)}};
+                                                    : nlohmann::json(nullptr)},
+                              {"pose_precision", o.pose_precision >= 0
+                                                     ? nlohmann::json(o.pose_precision)
+                                                     : nlohmann::json(nullptr)},
+                              {"det_precision_50", o.det_precision_50 >= 0
+                                                       ? nlohmann::json(o.det_precision_50)
+                                                       : nlohmann::json(nullptr)},
+                              {"reported", o.reported},
+                              {"false_positives", o.false_positives}};
     };
     for (const auto& o : r.objects) j["objects"].push_back(obj(o));
     j["average"] = obj(r.average);
@@ -491,6 +734,64 @@ std::string report_json(const EvalReport& r) {
     j["instances"] = r.instances;
     j["oracle"] = r.oracle;
     return j.dump(2);
+}
+
+std::vector<PrPoint> pr_curve(const std::vector<InstanceResult>& results) {
+    int instances = 0;
+    std::vector<std::pair<double, bool>> reported;  // (score, right)
+    for (const InstanceResult& r : results) {
+        instances += !r.false_positive;
+        if (r.reported) reported.emplace_back(r.score, r.right && !r.false_positive);
+    }
+    std::stable_sort(reported.begin(), reported.end(),
+                     [](const auto& a, const auto& b) { return a.first > b.first; });
+    std::vector<PrPoint> curve;
+    int n = 0, right = 0;
+    for (size_t i = 0; i < reported.size(); ++i) {
+        ++n;
+        right += reported[i].second;
+        if (i + 1 < reported.size() && reported[i + 1].first == reported[i].first) continue;
+        PrPoint p;
+        p.threshold = reported[i].first;
+        p.precision = 100.0 * right / n;
+        p.recall = instances ? 100.0 * right / instances : 0.0;
+        curve.push_back(p);
+    }
+    return curve;
+}
+
+infer::ScoreModel fit_score_model(const std::vector<HypothesisRecord>& hyps, double l2) {
+    constexpr int F = infer::ScoreModel::kFeatures;
+    std::vector<const HypothesisRecord*> use;
+    int pos = 0;
+    for (const HypothesisRecord& h : hyps)
+        if (h.posed && h.verified) use.push_back(&h), pos += h.pose_right;
+    const int n = int(use.size());
+    G2L_CHECK(n >= 20 && pos > 0 && pos < n, "fit_score_model: need at least 20 verified "
+              "hypotheses with right and wrong poses among them, got ", n, " (", pos, " right)");
+    Eigen::Matrix<double, F, 1> w = Eigen::Matrix<double, F, 1>::Zero();
+    for (int it = 0; it < 100; ++it) {
+        Eigen::Matrix<double, F, 1> grad = Eigen::Matrix<double, F, 1>::Zero();
+        Eigen::Matrix<double, F, F> hess = Eigen::Matrix<double, F, F>::Zero();
+        for (const HypothesisRecord* h : use) {
+            Eigen::Matrix<double, F, 1> x;
+            for (int k = 0; k < F; ++k) x[k] = h->features[size_t(k)];
+            const double p = 1.0 / (1.0 + std::exp(-std::clamp(w.dot(x), -40.0, 40.0)));
+            grad += (p - (h->pose_right ? 1.0 : 0.0)) * x;
+            hess += std::max(p * (1 - p), 1e-9) * x * x.transpose();
+        }
+        for (int k = 1; k < F; ++k) {  // the bias is not penalised
+            grad[k] += l2 * n * w[k];
+            hess(k, k) += l2 * n;
+        }
+        hess.diagonal().array() += 1e-9;
+        const Eigen::Matrix<double, F, 1> step = hess.ldlt().solve(grad);
+        w -= step;
+        if (step.cwiseAbs().maxCoeff() < 1e-8) break;
+    }
+    infer::ScoreModel m;
+    for (int k = 0; k < F; ++k) m.w[size_t(k)] = w[k];
+    return m;
 }
 
 }  // namespace g2l::eval

@@ -3,6 +3,7 @@
 // annotated instance, crop the depth inside its box and sphere, run G2L-Net, score the pose.
 #pragma once
 
+#include <array>
 #include <map>
 #include <string>
 #include <vector>
@@ -27,9 +28,16 @@ struct EvalOptions {
     bool centre_from_mask = false;
     int max_model_points = 2000;     ///< model vertices used by ADD / ADD-S (stride subsample)
     /// Boxes from a detector (BOP detection file; every entry needs scene_id and image_id)
-    /// instead of the GT boxes: each annotated instance takes the highest-scoring detection of
-    /// its object in its image; an instance without one is a miss. Null = GT boxes.
+    /// instead of the GT boxes. Each frame's detections take the library's road (the
+    /// hypotheses: each posed, refined, verified against the depth, duplicates and overlaps
+    /// suppressed; infer::FramePipeline::hypotheses), and the accepted poses are matched to the
+    /// ground-truth instances as BOP does: by score, each instance at most one estimate, the
+    /// one with the smallest ADD-S below 10% of the diameter; an instance left over takes the
+    /// nearest remaining estimate of its object within a diameter (a wrong pose), else it is a
+    /// miss; an estimate left over is a false positive. Null = GT boxes.
     const std::vector<data::Detection>* detections = nullptr;
+    /// The hypotheses road's settings (with detections).
+    infer::HypothesisOptions hypotheses;
     /// Oracle inputs, to tell which stage an error comes from (the rest runs as usual):
     /// oracle_seg = the ground-truth object points (the crop points within label_threshold_mm
     /// of the posed model, training's label rule) replace the segmentation; oracle_t = the GT
@@ -70,6 +78,14 @@ struct ObjectScores {
     /// the ground-truth visible box with IoU >= 0.5 (the average pools every instance);
     /// -1 with ground-truth boxes. An instance without such a detection counts as a miss.
     double det_recall_50 = -1;
+    /// With detections: % of the reported (accepted) poses that are right (ADD-S < 0.1 d of the
+    /// instance they are matched to); false positives count as wrong. -1 with GT boxes.
+    double pose_precision = -1;
+    /// With detections: % of the reported poses whose box overlaps a ground-truth visible box
+    /// of their object with IoU >= 0.5 (one box each). -1 with GT boxes.
+    double det_precision_50 = -1;
+    int reported = 0;         ///< with detections: poses reported (accepted), FPs included
+    int false_positives = 0;  ///< with detections: reported poses matching no instance
 };
 
 struct EvalReport {
@@ -110,7 +126,44 @@ struct InstanceResult {
     int refine_hyp = -1;           ///< refinement: -1 none, 0 the network's pose, else the turn
     double fit_mm = -1;            ///< refinement: the final fit (geometry/refine.h)
     double gt_fit_mm = -1;         ///< refinement: the same fit for the ground-truth pose
+    // The hypotheses road (detections):
+    bool reported = false;         ///< an accepted pose was matched to this instance
+    /// A reported pose that matches no ground-truth instance (its errors are not set; obj_id,
+    /// scene, image_id, score, est and box are). Counts against the precisions only.
+    bool false_positive = false;
+    bool box_hit = false;          ///< the reported pose's box has IoU >= 0.5 with a GT box
+    double det_score = -1;         ///< the detector's score of the reported pose's candidate
+    double verify_score = -1;      ///< its verification score (-1: not verified)
+    double explained = -1, violation = -1, seg_agree = -1;  ///< its verification's parts
+    /// Right at ADD-S < 0.1 d (only for a reported pose matched to an instance).
+    bool right = false;
 };
+
+/// One hypothesis of the hypotheses road, for precision-recall curves and pictures.
+struct HypothesisRecord {
+    std::string scene;
+    int image_id = 0;
+    int obj_id = 0;
+    double score = 0;         ///< the verified score (what a threshold compares)
+    double det_score = 0;
+    std::string verdict;      ///< infer::to_string(Verdict)
+    int rival = -1;           ///< the index (within the frame) of the pose that beat it
+    bool right = false;       ///< accepted and matched right (ADD-S < 0.1 d) to an instance
+    geom::Box2i box;
+    geom::Pose est;           ///< when posed
+    bool posed = false;
+    bool verified = false;
+    /// The score model's inputs (infer::ScoreModel::features), when verified.
+    std::array<double, infer::ScoreModel::kFeatures> features{};
+    /// The pose is right for some ground-truth instance of its object (ADD-S < 0.1 d),
+    /// whatever the matching: what the score model is fitted to predict.
+    bool pose_right = false;
+};
+
+/// Fits the score model (logistic regression, Newton's method with an L2 penalty `l2` on the
+/// weights but the bias) to the verified hypotheses' features and pose_right labels. Throws
+/// g2l::Error with fewer than 20 verified hypotheses or only one label among them.
+infer::ScoreModel fit_score_model(const std::vector<HypothesisRecord>& hyps, double l2 = 1e-2);
 
 /// What aggregation needs to know of an object.
 struct ObjectMeta {
@@ -135,11 +188,24 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
                              const std::vector<std::vector<Eigen::Vector3f>>& keypoints,
                              const EvalOptions& opt);
 
-/// evaluate_gt_boxes with every per-instance result (in frame order) in *instances.
+/// evaluate_gt_boxes with every per-instance result (in frame order) in *instances and, with
+/// detections, every hypothesis in *hypotheses (either may be null).
 EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                               const std::map<int, int>& class_of,
                               const std::vector<std::vector<Eigen::Vector3f>>& keypoints,
-                              const EvalOptions& opt, std::vector<InstanceResult>* instances);
+                              const EvalOptions& opt, std::vector<InstanceResult>* instances,
+                              std::vector<HypothesisRecord>* hypotheses = nullptr);
+
+/// One point of a precision-recall curve: reporting the poses scoring >= threshold.
+struct PrPoint {
+    double threshold = 0, precision = 0, recall = 0;  ///< precision and recall in %
+};
+/// The precision-recall curve of the reported poses over their verification scores (the
+/// detection's score where none was verified): a pose is right when matched right (ADD-S < 0.1
+/// d), recall counts every ground-truth instance. One point per distinct score, highest first.
+/// Greedy matching by score makes a higher-scored pose's match independent of the lower ones,
+/// so the curve is exact for every threshold.
+std::vector<PrPoint> pr_curve(const std::vector<InstanceResult>& results);
 
 /// The report as a Markdown table (one row per object + the average + timings).
 std::string report_markdown(const EvalReport& r);

@@ -1,12 +1,14 @@
 // SPDX-License-Identifier: MIT
 #include "infer/frame_pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
 #include "core/error.h"
 #include "geometry/camera.h"
 #include "geometry/crop.h"
+#include "geometry/verify.h"
 
 namespace g2l::infer {
 
@@ -234,6 +236,213 @@ void FramePipeline::run(const float* depth, const geom::Intrinsics& K,
                         const std::vector<PoseRequest>& requests, std::vector<PoseOutcome>* out) {
     crop(depth, K, requests, out);
     estimate(depth, K, out);
+}
+
+std::array<double, ScoreModel::kFeatures> ScoreModel::features(const geom::Verification& v,
+                                                               double det_score, bool borrowed) {
+    return {{1.0, v.explained, v.violation, v.occlusion, v.seg_agree, v.score,
+             std::log(std::clamp(det_score, 1e-3, 1.0)), borrowed ? 1.0 : 0.0}};
+}
+
+double ScoreModel::probability(const geom::Verification& v, double det_score,
+                               bool borrowed) const {
+    const auto x = features(v, det_score, borrowed);
+    double z = 0;
+    for (int k = 0; k < kFeatures; ++k) z += w[size_t(k)] * x[size_t(k)];
+    return 1.0 / (1.0 + std::exp(-std::clamp(z, -40.0, 40.0)));
+}
+
+const char* to_string(Verdict v) {
+    switch (v) {
+        case Verdict::accepted: return "accepted";
+        case Verdict::no_pose: return "no pose";
+        case Verdict::low_score: return "low score";
+        case Verdict::duplicate: return "duplicate";
+        case Verdict::overlap: return "overlap";
+    }
+    return "unknown verdict";
+}
+
+namespace {
+
+// Sorted box sides of a mesh (the shape a depth-only detector sees, up to its orientation).
+Eigen::Vector3d sorted_sides(const geom::ModelInfo& info) {
+    Eigen::Vector3d s = info.size;
+    std::sort(s.data(), s.data() + 3);
+    return s;
+}
+
+}  // namespace
+
+std::vector<Candidate> FramePipeline::candidates(const std::vector<Candidate>& detections,
+                                                 const HypothesisOptions& opt) const {
+    G2L_CHECK(opt.max_per_object >= 1 && opt.max_hypotheses >= 1 && opt.min_det_score >= 0 &&
+                  opt.alike_frac >= 0 && opt.alike_discount >= 0 && opt.alike_discount <= 1,
+              "FramePipeline::candidates: options out of range (max_per_object ",
+              opt.max_per_object, ", max_hypotheses ", opt.max_hypotheses, ", min_det_score ",
+              opt.min_det_score, ", alike_frac ", opt.alike_frac, ", alike_discount ",
+              opt.alike_discount, ")");
+    std::vector<Candidate> all;
+    for (const Candidate& d : detections) {
+        // Objects the model does not know, or whose size it was not given (evaluation on a
+        // dataset with a part of the model's objects), are not posed.
+        if (!model_.class_of.count(d.obj_id) || !model_.diameter.count(d.obj_id) ||
+            !(d.det_score >= opt.min_det_score))
+            continue;
+        Candidate c = d;
+        c.det_obj_id = d.obj_id;
+        all.push_back(c);
+        // The same peak as each object of a like shape (both need their mesh's box).
+        const PreparedMesh* me = mesh(d.obj_id);
+        if (opt.alike_frac <= 0 || !me) continue;
+        const Eigen::Vector3d a = sorted_sides(me->info);
+        for (const auto& [id, other] : meshes_) {
+            if (id == d.obj_id || !model_.class_of.count(id) || !model_.diameter.count(id))
+                continue;
+            const Eigen::Vector3d b = sorted_sides(other.info);
+            bool like = true;
+            for (int k = 0; k < 3; ++k)
+                like = like && std::abs(a[k] - b[k]) <= opt.alike_frac * std::max(a[k], b[k]);
+            if (!like) continue;
+            Candidate alt = c;
+            alt.obj_id = id;
+            alt.det_score = c.det_score * opt.alike_discount;
+            if (alt.det_score >= opt.min_det_score) all.push_back(alt);
+        }
+    }
+    // The order the budget (max_hypotheses) is spent in: each object's best own peak first
+    // (a weak peak of a partly hidden object is worth more than a second look at a found
+    // one), then the other own peaks, then the borrowed ones; by score within each.
+    std::map<int, double> best_own;
+    for (const Candidate& c : all)
+        if (c.obj_id == c.det_obj_id)
+            best_own[c.obj_id] = std::max(best_own[c.obj_id], c.det_score);
+    auto rank = [&](const Candidate& c) {
+        if (c.obj_id != c.det_obj_id) return 2;
+        return c.det_score == best_own[c.obj_id] ? 0 : 1;
+    };
+    std::stable_sort(all.begin(), all.end(), [&](const Candidate& x, const Candidate& y) {
+        const int rx = rank(x), ry = rank(y);
+        if (rx != ry) return rx < ry;
+        return x.det_score > y.det_score;
+    });
+    std::vector<Candidate> out;
+    std::map<int, int> per_object;
+    for (const Candidate& c : all) {
+        if (int(out.size()) >= opt.max_hypotheses) break;
+        // A borrowed peak already tried as that object (the same box) adds nothing.
+        bool seen = false;
+        for (const Candidate& o : out)
+            seen = seen || (o.obj_id == c.obj_id && o.box.x == c.box.x && o.box.y == c.box.y &&
+                            o.box.w == c.box.w && o.box.h == c.box.h);
+        if (seen || per_object[c.obj_id] >= opt.max_per_object) continue;
+        per_object[c.obj_id]++;
+        out.push_back(c);
+    }
+    return out;
+}
+
+geom::Verification FramePipeline::verify(const float* depth, const geom::Intrinsics& K,
+                                         const PoseOutcome& o,
+                                         const geom::VerifyOptions& opt) const {
+    const PreparedMesh* m = mesh(o.obj_id);
+    G2L_CHECK(m && o.ok(), "FramePipeline::verify: object ", o.obj_id,
+              m ? " has no pose" : " has no mesh");
+    geom::Points obs(int64_t(o.object_rows.size()), 3);
+    for (size_t i = 0; i < o.object_rows.size(); ++i)
+        obs.row(int64_t(i)) = o.crop.row(o.object_rows[i]);
+    const geom::DepthImage di{depth, K};
+    return geom::verify_pose(*m->tree, m->info, o.pose, di, obs, opt);
+}
+
+void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
+                               const std::vector<Candidate>& cands, const HypothesisOptions& opt,
+                               std::vector<Hypothesis>* out) {
+    G2L_CHECK(opt.min_score >= 0 && opt.duplicate_frac >= 0 && opt.overlap_frac > 0,
+              "FramePipeline::hypotheses: options out of range (min_score ", opt.min_score,
+              ", duplicate_frac ", opt.duplicate_frac, ", overlap_frac ", opt.overlap_frac, ")");
+    // 1. Every candidate through the one road: crop, networks, refinement.
+    std::vector<PoseRequest> reqs(cands.size());
+    for (size_t i = 0; i < cands.size(); ++i) {
+        reqs[i].obj_id = cands[i].obj_id;
+        reqs[i].box = cands[i].box;
+        reqs[i].peak_x = cands[i].peak_x;
+        reqs[i].peak_y = cands[i].peak_y;
+    }
+    std::vector<PoseOutcome> outs;
+    run(depth, K, reqs, &outs);
+    // 2. Verification against the depth.
+    std::vector<Hypothesis> hs(cands.size());
+    for (size_t i = 0; i < cands.size(); ++i) {
+        Hypothesis& h = hs[i];
+        h.cand = cands[i];
+        h.outcome = std::move(outs[i]);
+        h.score = h.cand.det_score;
+        if (!h.outcome.ok()) continue;
+        if (mesh(h.cand.obj_id)) {
+            const auto t0 = Clock::now();
+            h.check = verify(depth, K, h.outcome, opt.verify);
+            h.verified = true;
+            h.score = opt.score_model.probability(h.check, h.cand.det_score,
+                                                  h.cand.det_obj_id != h.cand.obj_id);
+            h.outcome.ms_refine += ms_since(t0);  // verification is part of the depth stage
+        }
+    }
+    // 3. Greedy selection, best score first: a hypothesis is kept unless a kept one is the same
+    //    instance (same object, centres closer than duplicate_frac x diameter) or claims the
+    //    same depth (footprints overlapping by more than overlap_frac).
+    std::vector<size_t> order(hs.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+        const bool oa = hs[a].outcome.ok(), ob = hs[b].outcome.ok();
+        if (oa != ob) return oa;
+        return hs[a].score > hs[b].score;
+    });
+    std::vector<size_t> kept;
+    for (const size_t i : order) {
+        Hypothesis& h = hs[i];
+        if (!h.outcome.ok()) {
+            h.verdict = Verdict::no_pose;
+            continue;
+        }
+        if (h.score < opt.min_score) {
+            h.verdict = Verdict::low_score;
+            continue;
+        }
+        h.verdict = Verdict::accepted;
+        for (const size_t k : kept) {
+            const Hypothesis& w = hs[k];
+            if (w.cand.obj_id == h.cand.obj_id) {
+                const double d = model_.diameter.at(h.cand.obj_id);
+                if ((w.outcome.pose.t - h.outcome.pose.t).norm() < opt.duplicate_frac * d) {
+                    h.verdict = Verdict::duplicate;
+                    h.rival = int(k);
+                    break;
+                }
+            }
+            if (h.verified && w.verified &&
+                geom::footprint_overlap(w.check.footprint, h.check.footprint) > opt.overlap_frac) {
+                h.verdict = Verdict::overlap;
+                h.rival = int(k);
+                break;
+            }
+        }
+        if (h.accepted()) kept.push_back(i);
+    }
+    // 4. Accepted first, then the rejected, each by score; rivals renumbered.
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+        const bool ka = hs[a].accepted(), kb = hs[b].accepted();
+        if (ka != kb) return ka;
+        return false;  // keep the score order of step 3
+    });
+    std::vector<int> new_index(hs.size());
+    for (size_t j = 0; j < order.size(); ++j) new_index[order[j]] = int(j);
+    out->clear();
+    out->reserve(hs.size());
+    for (const size_t i : order) {
+        out->push_back(std::move(hs[i]));
+        if (out->back().rival >= 0) out->back().rival = new_index[size_t(out->back().rival)];
+    }
 }
 
 }  // namespace g2l::infer

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <map>
 #include <memory>
 #include <optional>
@@ -19,6 +20,7 @@
 #include "geometry/model_info.h"
 #include "geometry/refine.h"
 #include "geometry/types.h"
+#include "geometry/verify.h"
 #include "nn/models/g2l_engine.h"
 #include "nn/models/g2l_io.h"
 
@@ -118,6 +120,86 @@ struct PipelineOptions {
     Refine refine = Refine::none;
 };
 
+/// A detection to pose: the detector's box and class-probability peak of one object.
+struct Candidate {
+    int obj_id = 0;
+    geom::Box2i box;
+    double peak_x = -1, peak_y = -1;  ///< the class-probability peak (px); < 0: none
+    double det_score = 0;             ///< the detector's heat at the peak
+    /// The object the detector's peak was for: obj_id itself, or an object of a like shape
+    /// whose peak this candidate re-uses (HypothesisOptions::alike_frac).
+    int det_obj_id = 0;
+};
+
+/// The score of a verified pose as the probability that it is right (ADD-S < 0.1 d): a logistic
+/// model over the verification's parts and the detector's score. Depth alone cannot tell two
+/// objects of a like shape apart (a gelatin box fits the face of a pudding box), the detector's
+/// class map can; and a pose the depth explains is right more often than its detection score
+/// says. Fitted on renders, never on real frames (`g2l_eval --fit-score`, docs/results.md).
+struct ScoreModel {
+    static constexpr int kFeatures = 8;
+    /// 1, explained, violation, occlusion, seg_agree, support x seg_agree, ln(det_score), and 1
+    /// when the peak was borrowed from an object of a like shape.
+    static std::array<double, kFeatures> features(const geom::Verification& v, double det_score,
+                                                  bool borrowed);
+    /// Fitted 2026-12-05 on the verified hypotheses of 60 renders (configs/scenes/
+    /// ycbv_table_blocks.json, seed 31; the shipped detector and pose model; docs/results.md
+    /// has the command and the curves).
+    std::array<double, kFeatures> w{{-0.2389, 0.6430, -0.6848, 0.0488, 0.7912, 1.6036, 1.9048,
+                                     -0.1475}};
+    /// sigmoid(w . features), in (0, 1).
+    double probability(const geom::Verification& v, double det_score, bool borrowed) const;
+};
+
+/// How a frame's candidates become its poses (spec §16): every candidate is posed by the
+/// networks and refined, verified against the depth (geometry/verify.h), and the best explained
+/// kept, suppressing duplicates and overlaps.
+struct HypothesisOptions {
+    int max_per_object = 3;   ///< candidates of one object kept (its best peaks)
+    int max_hypotheses = 12;  ///< candidates posed per frame, best detection scores first
+    double min_det_score = 0.1;  ///< candidates the detector scores below are not posed
+    /// A peak of one object is also tried as each object whose sorted box sides all lie within
+    /// this fraction of its own (depth-only detectors confuse such objects); 0 = off.
+    double alike_frac = 0.15;
+    /// Such a borrowed peak enters with this share of its detection score.
+    double alike_discount = 0.8;
+    /// Verified score below this: rejected ("low score"). Without a mesh nothing is verified and
+    /// the score is the detection's.
+    double min_score = 0.0;
+    /// Two poses of one object whose centres lie closer than this fraction of its diameter are
+    /// one instance: the lower score is a duplicate.
+    double duplicate_frac = 0.5;
+    /// A pose more than this share of whose depth a higher-scored kept pose claims too
+    /// (geom::footprint_overlap) is rejected ("overlap"): two objects cannot fill the same
+    /// space.
+    double overlap_frac = 0.3;
+    geom::VerifyOptions verify;
+    ScoreModel score_model;
+};
+
+/// What became of a hypothesis.
+enum class Verdict {
+    accepted,
+    no_pose,     ///< the pipeline gave no pose (PoseOutcome::status says why)
+    low_score,   ///< verified score below HypothesisOptions::min_score
+    duplicate,   ///< another pose of the same object at the same place scored higher
+    overlap,     ///< a higher-scored pose claims the same depth
+};
+const char* to_string(Verdict v);
+
+struct Hypothesis {
+    Candidate cand;
+    PoseOutcome outcome;
+    bool verified = false;        ///< a mesh verified it (else score = det_score)
+    geom::Verification check;     ///< when verified
+    /// The probability that the pose is right (HypothesisOptions::score_model over the check
+    /// and the detection), or det_score when not verified.
+    double score = 0;
+    Verdict verdict = Verdict::no_pose;
+    int rival = -1;               ///< duplicate / overlap: the index of the pose that won
+    bool accepted() const { return verdict == Verdict::accepted; }
+};
+
 class FramePipeline {
 public:
     /// Throws g2l::Error for a null network, options out of range, or a crop kind other than
@@ -148,6 +230,23 @@ public:
     /// crop + estimate.
     void run(const float* depth_mm, const geom::Intrinsics& K,
              const std::vector<PoseRequest>& requests, std::vector<PoseOutcome>* out);
+
+    /// The candidates of a frame's detections: per object its best `max_per_object`, plus each
+    /// detection tried as the objects of a like shape (HypothesisOptions::alike_frac; needs
+    /// their meshes' boxes), at most `max_hypotheses`, best score first. Detections of objects
+    /// the model does not know (or knows no diameter of) are dropped.
+    std::vector<Candidate> candidates(const std::vector<Candidate>& detections,
+                                      const HypothesisOptions& opt) const;
+    /// The hypotheses road: every candidate through crop, networks and refinement, verified
+    /// against the depth (objects with a mesh), then ranked by score with duplicates and
+    /// overlaps suppressed. *out: one Hypothesis per candidate, accepted ones first by score,
+    /// then the rejected ones by score. Deterministic.
+    void hypotheses(const float* depth_mm, const geom::Intrinsics& K,
+                    const std::vector<Candidate>& candidates, const HypothesisOptions& opt,
+                    std::vector<Hypothesis>* out);
+    /// Verifies one posed outcome (status ok, object with a mesh) against the depth.
+    geom::Verification verify(const float* depth_mm, const geom::Intrinsics& K,
+                              const PoseOutcome& o, const geom::VerifyOptions& opt) const;
 
 private:
     PipelineModel model_;

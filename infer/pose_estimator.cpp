@@ -3,6 +3,7 @@
 // the code g2l_eval runs too) and the detector, behind a header of plain types.
 #include "g2l/pose_estimator.h"
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -33,6 +34,9 @@ const char* to_string(PoseStatus s) {
         case PoseStatus::no_depth: return "no depth";
         case PoseStatus::too_few_points: return "too few points";
         case PoseStatus::too_few_object_points: return "too few object points";
+        case PoseStatus::rejected_low_score: return "low score";
+        case PoseStatus::rejected_duplicate: return "duplicate";
+        case PoseStatus::rejected_overlap: return "overlap";
     }
     return "unknown status";
 }
@@ -58,6 +62,16 @@ struct PoseEstimator::Impl {
     std::vector<float> depth_mm;  // the frame's depth in mm
     std::vector<infer::PoseRequest> requests;
     std::vector<infer::PoseOutcome> outcomes;
+    std::vector<infer::Hypothesis> hyps;
+    infer::HypothesisOptions hypothesis_options() const {
+        infer::HypothesisOptions h;
+        h.max_per_object = options.max_instances;
+        h.max_hypotheses = options.max_hypotheses;
+        h.min_det_score = options.min_detection_score;
+        h.alike_frac = options.alike_hypotheses ? h.alike_frac : 0.0;
+        h.min_score = options.min_pose_score;
+        return h;
+    }
 };
 
 PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptions& options)
@@ -74,6 +88,13 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
                   options.min_detection_score <= 1,
               "PoseEstimator: min_detection_score must be in [0, 1], got ",
               options.min_detection_score);
+    G2L_CHECK(options.max_instances >= 1, "PoseEstimator: max_instances must be >= 1, got ",
+              options.max_instances);
+    G2L_CHECK(options.max_hypotheses >= 1, "PoseEstimator: max_hypotheses must be >= 1, got ",
+              options.max_hypotheses);
+    G2L_CHECK(std::isfinite(options.min_pose_score) && options.min_pose_score >= 0 &&
+                  options.min_pose_score <= 1,
+              "PoseEstimator: min_pose_score must be in [0, 1], got ", options.min_pose_score);
     G2L_CHECK(options.refine == Refinement::none || options.refine == Refinement::icp ||
                   options.refine == Refinement::turns || options.refine == Refinement::automatic,
               "PoseEstimator: refine must be none, icp, turns or automatic, got ",
@@ -110,10 +131,11 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
                 : m.options.refine == Refinement::icp ? infer::Refine::icp
                                                       : infer::Refine::none;
     m.pipeline = std::make_unique<infer::FramePipeline>(infer::PipelineModel::of(m.model), po);
-    if (po.refine != infer::Refine::none) {
-        // The meshes of the model's objects found in the folder (an object without one keeps
-        // the networks' pose: ObjectPose::refined tells). Their box and diameter: the
-        // models_info.json entry when one is given, else measured on the mesh.
+    if (!options.meshes.empty()) {
+        // The meshes of the model's objects found in the folder: the refinement and the
+        // verification use them (an object without one keeps the networks' pose unverified:
+        // ObjectPose::refined and verified tell). Their box and diameter: the models_info.json
+        // entry when one is given, else measured on the mesh.
         std::error_code ec;
         G2L_CHECK(std::filesystem::is_directory(options.meshes, ec),
                   "PoseEstimator: EstimatorOptions::meshes '", options.meshes, "' is not a folder");
@@ -189,6 +211,53 @@ const float* depth_in_mm(const FrameView& f, std::vector<float>& buf) {
 
 }  // namespace
 
+namespace {
+
+// One pipeline outcome as the public type (score and check are set by the caller).
+ObjectPose to_public(const infer::PoseOutcome& o) {
+    ObjectPose p;
+    p.obj_id = o.obj_id;
+    switch (o.status) {
+        case infer::PoseStatus::ok: p.status = PoseStatus::ok; break;
+        case infer::PoseStatus::unknown_object: p.status = PoseStatus::unknown_object; break;
+        case infer::PoseStatus::box_outside_image: p.status = PoseStatus::box_outside_image; break;
+        case infer::PoseStatus::no_depth: p.status = PoseStatus::no_depth; break;
+        case infer::PoseStatus::too_few_points: p.status = PoseStatus::too_few_points; break;
+        case infer::PoseStatus::too_few_object_points:
+            p.status = PoseStatus::too_few_object_points;
+            break;
+    }
+    p.num_crop_points = o.num_crop_points;
+    p.num_object_points = o.num_object_points;
+    p.bbox = {{o.box.x, o.box.y, o.box.w, o.box.h}};
+    p.timings.crop_ms = o.ms_crop;
+    p.timings.segmentation_ms = o.ms_seg;
+    p.timings.translation_ms = o.ms_t;
+    p.timings.rotation_ms = o.ms_rot;
+    p.timings.refine_ms = o.ms_refine;
+    p.timings.total_ms = o.ms_crop + o.ms_seg + o.ms_t + o.ms_rot + o.ms_refine;
+    p.refined = o.refined;
+    p.fit_mm = o.fit_mm;
+    if (o.ok()) {
+        for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 3; ++c) p.R[size_t(r * 3 + c)] = o.pose.R(r, c);
+            p.t[size_t(r)] = o.pose.t[r];
+        }
+    }
+    return p;
+}
+
+void set_check(const geom::Verification& v, double score, ObjectPose* p) {
+    p->verified = true;
+    p->score = score;
+    p->check.explained = v.explained;
+    p->check.violation = v.violation;
+    p->check.occlusion = v.occlusion;
+    p->check.seg_agree = v.seg_agree;
+}
+
+}  // namespace
+
 std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
                                                 const std::vector<ObjectBox>& boxes) {
     check_frame(f, "PoseEstimator::estimate");
@@ -213,34 +282,19 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
     for (size_t i = 0; i < boxes.size(); ++i) {
         const infer::PoseOutcome& o = m.outcomes[i];
         ObjectPose& p = out[i];
+        p = to_public(o);
         p.obj_id = boxes[i].obj_id;
-        p.score = boxes[i].score;
-        switch (o.status) {
-            case infer::PoseStatus::ok: p.status = PoseStatus::ok; break;
-            case infer::PoseStatus::unknown_object: p.status = PoseStatus::unknown_object; break;
-            case infer::PoseStatus::box_outside_image: p.status = PoseStatus::box_outside_image; break;
-            case infer::PoseStatus::no_depth: p.status = PoseStatus::no_depth; break;
-            case infer::PoseStatus::too_few_points: p.status = PoseStatus::too_few_points; break;
-            case infer::PoseStatus::too_few_object_points:
-                p.status = PoseStatus::too_few_object_points;
-                break;
-        }
-        p.num_crop_points = o.num_crop_points;
-        p.num_object_points = o.num_object_points;
-        p.timings.crop_ms = o.ms_crop;
-        p.timings.segmentation_ms = o.ms_seg;
-        p.timings.translation_ms = o.ms_t;
-        p.timings.rotation_ms = o.ms_rot;
-        p.timings.refine_ms = o.ms_refine;
-        p.timings.total_ms = o.ms_crop + o.ms_seg + o.ms_t + o.ms_rot + o.ms_refine;
-        p.refined = o.refined;
-        p.fit_mm = o.fit_mm;
-        if (o.ok()) {
-            for (int r = 0; r < 3; ++r) {
-                for (int c = 0; c < 3; ++c) p.R[size_t(r * 3 + c)] = o.pose.R(r, c);
-                p.t[size_t(r)] = o.pose.t[r];
-            }
-        }
+        p.score = p.detection_score = boxes[i].score;
+        if (!o.ok() || !m.pipeline->mesh(o.obj_id)) continue;
+        const auto t0 = std::chrono::steady_clock::now();
+        const infer::HypothesisOptions ho = m.hypothesis_options();
+        const geom::Verification v = m.pipeline->verify(depth, K, o, ho.verify);
+        set_check(v, ho.score_model.probability(v, boxes[i].score, false), &p);
+        const double ms = std::chrono::duration<double, std::milli>(
+                              std::chrono::steady_clock::now() - t0).count();
+        p.timings.refine_ms += ms;
+        p.timings.total_ms += ms;
+        if (p.score < m.options.min_pose_score) p.status = PoseStatus::rejected_low_score;
     }
     return out;
 }
@@ -269,9 +323,9 @@ std::vector<ObjectBox> PoseEstimator::detect(const FrameView& f) {
     std::lock_guard<std::mutex> lock(m.mutex);
     if (m.options.threads > 0) set_num_threads(m.options.threads);
     const auto dets = nn::detect(*m.detector->net, m.detector->downscale, df,
-                                 float(m.options.min_detection_score), 1,
+                                 float(m.options.min_detection_score), m.options.max_instances,
                                  m.options.detector_mirror);
-    std::vector<ObjectBox> out;  // detect() returns them best first, one per class
+    std::vector<ObjectBox> out;  // best first, at most max_instances per class
     for (const nn::Detection& d : dets) {
         ObjectBox b;
         b.obj_id = m.detector->object_ids[size_t(d.cls)];
@@ -288,8 +342,44 @@ std::string PoseEstimator::detector_input() const {
     return impl_->detector ? nn::to_string(impl_->detector->input()) : "";
 }
 
-std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& frame) {
-    return estimate(frame, detect(frame));
+std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f) {
+    const std::vector<ObjectBox> boxes = detect(f);  // checks the frame for the detector
+    check_frame(f, "PoseEstimator::estimate");
+    Impl& m = *impl_;
+    std::lock_guard<std::mutex> lock(m.mutex);
+    if (m.options.threads > 0) set_num_threads(m.options.threads);
+    const float* depth = depth_in_mm(f, m.depth_mm);
+    geom::Intrinsics K;
+    K.fx = f.K.fx, K.fy = f.K.fy, K.cx = f.K.cx, K.cy = f.K.cy;
+    K.width = f.width, K.height = f.height;
+    std::vector<infer::Candidate> dets;
+    for (const ObjectBox& b : boxes) {
+        infer::Candidate c;
+        c.obj_id = c.det_obj_id = b.obj_id;
+        c.box = {b.x, b.y, b.w, b.h};
+        c.peak_x = b.peak_x, c.peak_y = b.peak_y;
+        c.det_score = b.score;
+        dets.push_back(c);
+    }
+    const infer::HypothesisOptions ho = m.hypothesis_options();
+    m.pipeline->hypotheses(depth, K, m.pipeline->candidates(dets, ho), ho, &m.hyps);
+    std::vector<ObjectPose> out;
+    for (const infer::Hypothesis& h : m.hyps) {
+        if (!h.accepted() && !m.options.keep_rejected) continue;
+        ObjectPose p = to_public(h.outcome);
+        p.score = p.detection_score = h.cand.det_score;
+        if (h.verified) set_check(h.check, h.score, &p);
+        p.rival = h.rival;
+        switch (h.verdict) {
+            case infer::Verdict::low_score: p.status = PoseStatus::rejected_low_score; break;
+            case infer::Verdict::duplicate: p.status = PoseStatus::rejected_duplicate; break;
+            case infer::Verdict::overlap: p.status = PoseStatus::rejected_overlap; break;
+            case infer::Verdict::accepted:
+            case infer::Verdict::no_pose: break;
+        }
+        out.push_back(p);
+    }
+    return out;
 }
 
 }  // namespace g2l

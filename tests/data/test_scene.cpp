@@ -600,3 +600,58 @@ TEST_CASE("resting mode: tallest poses, blocks to stand on, leaning objects", "[
                           Contains("on_object_prob must be in [0, 1], got 2"));
     }
 }
+
+TEST_CASE("scene bins: kinds_min/kinds_max draw copies of a few objects per frame",
+          "[data][scene]") {
+    Models m;
+    SceneConfig cfg = small_config();
+    cfg.pose_mode = "resting";
+    cfg.unique_targets = false;
+    cfg.kinds_min = cfg.kinds_max = 1;
+    cfg.targets_min = cfg.targets_max = 4;
+    cfg.distractors_min = cfg.distractors_max = 0;
+    cfg.noise.enabled = false;
+    RenderedFrame f;
+    std::vector<int> kinds_seen;
+    SceneGenerator gen(cfg, m.list());
+    for (int64_t idx = 0; idx < 4; ++idx) {
+        gen.render_frame(idx, f);
+        REQUIRE(f.instances.size() == 4);  // four copies of one object
+        for (const auto& inst : f.instances) CHECK(inst.obj_id == f.instances[0].obj_id);
+        kinds_seen.push_back(f.instances[0].obj_id);
+    }
+    // Two kinds at most: never a third object in a frame.
+    cfg.kinds_max = 2;
+    cfg.targets_min = cfg.targets_max = 6;
+    SceneGenerator gen2(cfg, m.list());
+    for (int64_t idx = 0; idx < 4; ++idx) {
+        gen2.render_frame(idx, f);
+        std::vector<int> ids;
+        for (const auto& inst : f.instances) ids.push_back(inst.obj_id);
+        std::sort(ids.begin(), ids.end());
+        ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+        CHECK(ids.size() <= 2);
+        CHECK(f.instances.size() == 6);
+    }
+    // The key list: kinds need copies (unique_targets false) and a sane range.
+    SceneConfig bad = cfg;
+    bad.unique_targets = true;
+    CHECK_THROWS_WITH(validate(bad), Contains("unique_targets false"));
+    bad = cfg;
+    bad.kinds_min = 3;
+    CHECK_THROWS_WITH(validate(bad), Contains("kinds_min <= kinds_max"));
+    bad = cfg;
+    bad.kinds_min = 0;
+    CHECK_THROWS_WITH(validate(bad), Contains("kinds_min >= 1"));
+}
+
+TEST_CASE("scene bins: configs/scenes/ycbv_bin.json reads and round-trips", "[data][scene]") {
+    const SceneConfig c =
+        load_scene_config(std::string(G2L_SOURCE_DIR) + "/configs/scenes/ycbv_bin.json");
+    CHECK(c.kinds_min == 1);
+    CHECK(c.kinds_max == 3);
+    CHECK_FALSE(c.unique_targets);
+    const SceneConfig back = parse_scene_config(scene_config_to_json(c), "round trip");
+    CHECK(back.kinds_min == c.kinds_min);
+    CHECK(back.kinds_max == c.kinds_max);
+}

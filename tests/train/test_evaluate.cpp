@@ -91,8 +91,8 @@ TEST_CASE("aggregate: instances of unknown objects or bad diameters throw", "[tr
     CHECK(empty.instances == 0);
 }
 
-TEST_CASE("evaluate_instances: detector boxes equal to the GT boxes give the GT-box results, "
-          "undetected instances are misses", "[train][eval]") {
+TEST_CASE("evaluate_instances: detector boxes take the hypotheses road and are matched as BOP "
+          "does; undetected instances are misses", "[train][eval]") {
     const std::string root = testing::fixture_dir() + "/ycbv_mini";
     const data::Dataset ds = data::open_bop(root, "train_real", {});
     nn::LoadedModel m = nn::load_model(std::string(G2L_SOURCE_DIR) + "/models/ycbv_sim2real.g2l");
@@ -101,44 +101,86 @@ TEST_CASE("evaluate_instances: detector boxes equal to the GT boxes give the GT-
     eo.radius_scale = m.radius_scale;
     eo.crop_points = m.points;
     eo.max_object_points = m.seg_points;
+    eo.refine = g2l::infer::Refine::turns;
     std::vector<InstanceResult> gt, det, some;
     const EvalReport rg = evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, &gt);
     REQUIRE(gt.size() == 4);
+    CHECK(rg.average.pose_precision == -1);  // GT boxes report no precision
     std::vector<data::Detection> dets;
     for (const auto& f : ds.frames())
         for (const auto& inst : f.instances)
             dets.push_back({std::stoi(f.scene), f.image_id, inst.obj_id, double(inst.bbox_visib.x),
                             double(inst.bbox_visib.y), double(inst.bbox_visib.w),
                             double(inst.bbox_visib.h), 0.5, 0.01});
-    // A worse-scoring wrong box for each: the best-scoring detection is the one used.
+    // A worse-scoring box beside each one: posed and verified too, it must not displace the
+    // right pose (ranked below it, or rejected, or reported as a false positive).
     const size_t n = dets.size();
     for (size_t i = 0; i < n; ++i) {
         data::Detection d = dets[i];
         d.x += 100;
-        d.score = 0.1;
+        d.score = 0.2;
         dets.push_back(d);
     }
     eo.detections = &dets;
-    const EvalReport rd = evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, &det);
-    REQUIRE(det.size() == gt.size());
+    std::vector<HypothesisRecord> hyps;
+    const EvalReport rd = evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, &det, &hyps);
+    std::vector<const InstanceResult*> matched, fps;
+    for (const auto& r : det) (r.false_positive ? fps : matched).push_back(&r);
+    REQUIRE(matched.size() == gt.size());
     for (size_t i = 0; i < gt.size(); ++i) {
-        CHECK(det[i].found == gt[i].found);
-        CHECK(det[i].add_mm == gt[i].add_mm);
-        CHECK(det[i].score == 0.5);
-        CHECK(gt[i].score == 1.0);
-        CHECK(det[i].status == "ok");
-        CHECK(det[i].est.t == gt[i].est.t);
+        INFO("instance " << i << " object " << gt[i].obj_id);
+        const InstanceResult& r = *matched[i];
+        CHECK(r.obj_id == gt[i].obj_id);
+        CHECK(r.found == gt[i].found);
+        CHECK(r.status == "ok");
+        CHECK(r.reported);
+        CHECK(r.det_score == 0.5);
+        // The same box gives the same crop, networks and refinement: the same pose.
+        CHECK(r.add_mm == gt[i].add_mm);
+        CHECK(r.est.t == gt[i].est.t);
+        CHECK(r.right);
+        CHECK(r.box_hit);
+        CHECK(r.verify_score >= 0.0);
+        CHECK(r.score >= 0.0);
+        CHECK(r.score > 0.5);
+        CHECK(r.det_iou == Approx(1.0));
     }
+    for (const InstanceResult* r : fps) {
+        CHECK(r->reported);
+        CHECK(r->inst_index == -1);
+        CHECK_FALSE(r->right);
+        for (const InstanceResult* t : matched)  // every right pose outranks a false positive
+            if (t->scene == r->scene && t->image_id == r->image_id) CHECK(t->score > r->score);
+    }
+    CHECK(rd.instances == 4);
+    CHECK(rd.average.count == 4);
+    CHECK(rd.average.reported == int(det.size()));
+    CHECK(rd.average.false_positives == int(fps.size()));
+    CHECK(rd.average.pose_precision == Approx(100.0 * 4 / double(det.size())));
+    CHECK(rd.average.det_recall_50 == Approx(100.0));
     CHECK(rd.average.auc_adds == rg.average.auc_adds);
+    CHECK(hyps.size() == dets.size());  // every candidate is a hypothesis with a verdict
+    int accepted = 0;
+    for (const auto& h : hyps) accepted += h.verdict == "accepted";
+    CHECK(accepted == int(det.size()));
+    // Thresholding the score at the curve's points gives its precision and recall.
+    const auto curve = pr_curve(det);
+    REQUIRE(!curve.empty());
+    CHECK(curve.back().precision == Approx(rd.average.pose_precision));
+    CHECK(curve.back().recall == Approx(100.0));
+    CHECK(curve.front().precision == Approx(100.0));
     // Only image 1's detections: image 11's instances are misses.
     std::vector<data::Detection> one;
     for (const auto& d : dets)
         if (d.image_id == 1) one.push_back(d);
     eo.detections = &one;
     const EvalReport rs = evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, &some);
-    REQUIRE(some.size() == 4);
-    int misses = 0;
-    for (const auto& r : some) misses += r.status == "no detection" && !r.found;
+    int misses = 0, counted = 0;
+    for (const auto& r : some) {
+        counted += !r.false_positive;
+        misses += r.status == "no detection" && !r.found;
+    }
+    CHECK(counted == 4);
     CHECK(misses == 2);
     CHECK(rs.average.misses == 2);
     // Detections must say which image they belong to.
@@ -147,4 +189,72 @@ TEST_CASE("evaluate_instances: detector boxes equal to the GT boxes give the GT-
     eo.detections = &anon;
     REQUIRE_THROWS_WITH(evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, nullptr),
                         Catch::Contains("no scene_id / image_id"));
+}
+
+TEST_CASE("pr_curve and aggregate: false positives lower the precision only; fit_score_model "
+          "learns a separating score", "[train][eval]") {
+    std::map<int, ObjectMeta> meta{{1, {"a", 100.0, false, 1}}};
+    std::vector<InstanceResult> rs;
+    auto inst = [](double score, bool right, bool fp, bool found) {
+        InstanceResult r;
+        r.obj_id = 1;
+        r.found = found;
+        r.reported = found;
+        r.false_positive = fp;
+        r.right = right;
+        r.box_hit = right;
+        r.score = score;
+        r.det_iou = fp ? -1 : (found ? 0.9 : 0.0);
+        r.adds_mm = r.add_mm = r.addsym_mm = right ? 1.0 : 50.0;
+        return r;
+    };
+    rs.push_back(inst(0.9, true, false, true));
+    rs.push_back(inst(0.8, false, true, true));   // a false positive
+    rs.push_back(inst(0.7, true, false, true));
+    rs.push_back(inst(0.6, false, false, true));  // a wrong pose of an instance
+    rs.push_back(inst(0.0, false, false, false)); // a miss
+    const EvalReport r = aggregate(rs, meta);
+    CHECK(r.instances == 4);
+    CHECK(r.average.count == 4);
+    CHECK(r.average.misses == 1);
+    CHECK(r.average.reported == 4);
+    CHECK(r.average.false_positives == 1);
+    CHECK(r.average.pose_precision == Approx(50.0));
+    CHECK(r.average.det_precision_50 == Approx(50.0));
+    CHECK(r.average.acc_adds_all_10 == Approx(50.0));  // 2 right of 4 instances
+    const auto c = pr_curve(rs);
+    REQUIRE(c.size() == 4);
+    CHECK(c[0].threshold == 0.9);
+    CHECK(c[0].precision == Approx(100.0));
+    CHECK(c[0].recall == Approx(25.0));
+    CHECK(c[1].precision == Approx(50.0));
+    CHECK(c[2].precision == Approx(200.0 / 3.0));
+    CHECK(c[2].recall == Approx(50.0));
+    CHECK(c[3].precision == Approx(50.0));
+    CHECK(pr_curve({}).empty());
+
+    // Right poses have a high explained share, wrong ones a low one, with overlap: the fitted
+    // model ranks them by it (a positive weight) and predicts well above / below one half.
+    std::vector<HypothesisRecord> hs;
+    for (int i = 0; i < 60; ++i) {
+        HypothesisRecord h;
+        h.posed = h.verified = true;
+        h.pose_right = i % 2 == 0;
+        const double e = h.pose_right ? 0.6 + 0.006 * i : 0.1 + 0.008 * i;
+        h.features = {{1.0, e, 0.1, 0.1, 0.5, 0.5 * e, std::log(0.5), 0.0}};
+        hs.push_back(h);
+    }
+    const g2l::infer::ScoreModel sm = fit_score_model(hs);
+    CHECK(sm.w[1] + 0.5 * sm.w[5] > 0);
+    geom::Verification hi, lo;
+    hi.explained = 0.95, hi.score = 0.5 * 0.95, hi.seg_agree = 0.5, hi.violation = hi.occlusion = 0.1;
+    lo.explained = 0.15, lo.score = 0.5 * 0.15, lo.seg_agree = 0.5, lo.violation = lo.occlusion = 0.1;
+    CHECK(sm.probability(hi, 0.5, false) > 0.8);
+    CHECK(sm.probability(lo, 0.5, false) < 0.2);
+    // Too few, or one label only: a clear error.
+    std::vector<HypothesisRecord> few(hs.begin(), hs.begin() + 10);
+    CHECK_THROWS_WITH(fit_score_model(few), Catch::Contains("at least 20 verified"));
+    std::vector<HypothesisRecord> same = hs;
+    for (auto& h : same) h.pose_right = true;
+    CHECK_THROWS_WITH(fit_score_model(same), Catch::Contains("right and wrong"));
 }

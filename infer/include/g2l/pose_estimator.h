@@ -74,11 +74,16 @@ enum class PoseStatus {
     box_outside_image,     ///< the box has no pixel inside the image
     no_depth,              ///< no valid depth in the box
     too_few_points,        ///< fewer than 10 depth points in the 3D crop
-    too_few_object_points  ///< the segmentation kept fewer than 10 points
+    too_few_object_points, ///< the segmentation kept fewer than 10 points
+    // A pose was found but not reported (R, t and score are set; EstimatorOptions::keep_rejected
+    // returns these from estimate(frame)):
+    rejected_low_score,    ///< its verified score is below EstimatorOptions::min_pose_score
+    rejected_duplicate,    ///< a higher-scored pose of the same object lies at the same place
+    rejected_overlap       ///< a higher-scored pose claims the same depth (ObjectPose::rival)
 };
 
 /// "ok", "unknown object", "box outside image", "no depth", "too few points",
-/// "too few object points".
+/// "too few object points", "low score", "duplicate", "overlap".
 G2L_API const char* to_string(PoseStatus status);
 
 /// Wall time of the stages of one box, in milliseconds. The boxes of one frame run through the
@@ -98,7 +103,26 @@ struct ObjectPose {
     PoseStatus status = PoseStatus::ok;
     std::array<double, 9> R{{1, 0, 0, 0, 1, 0, 0, 0, 1}};  ///< model -> camera, row-major
     std::array<double, 3> t{{0, 0, 0}};                    ///< model origin in the camera, mm
-    double score = 0;              ///< the box's score
+    /// How far the depth bears the pose out, in [0, 1], when the object's mesh is known
+    /// (EstimatorOptions::meshes): the share of the model's visible surface the measured depth
+    /// explains, discounted for free-space violations (the sensor saw through where the model
+    /// would be) and occlusion, times the share of the segmented points the posed model
+    /// explains (see `check`). Without the mesh: the box's (detection's) score. Threshold it
+    /// with EstimatorOptions::min_pose_score; docs/results.md shows its precision-recall curve.
+    double score = 0;
+    double detection_score = 0;    ///< the box's (detector's) score
+    std::array<int, 4> bbox{{0, 0, 0, 0}};  ///< the box it came from, clipped: x, y, w, h (px)
+    /// The parts of `score` (all -1 when not verified).
+    struct Check {
+        double explained = -1;   ///< share of the visible model surface the depth explains
+        double violation = -1;   ///< share seen through (free-space violations)
+        double occlusion = -1;   ///< share hidden behind something nearer
+        double seg_agree = -1;   ///< share of the object points on the posed surface
+    } check;
+    bool verified = false;         ///< `score` is the depth verification's
+    /// rejected_duplicate / rejected_overlap: the index (in the returned list) of the pose that
+    /// won; -1 otherwise.
+    int rival = -1;
     int num_crop_points = 0;       ///< depth points in the 3D crop
     int num_object_points = 0;     ///< of those, segmented as the object
     /// With EstimatorOptions::refine: the mean distance (mm) from the object points to the
@@ -143,6 +167,21 @@ struct EstimatorOptions {
     /// <run_dir>/detector.g2l): enables detect() and estimate(frame) without boxes.
     std::string detector;
     double min_detection_score = 0.3;  ///< detect(): boxes scoring less are dropped
+    /// detect() / estimate(frame): the best peaks kept per object, so several instances of one
+    /// object each get a pose (bin picking).
+    int max_instances = 3;
+    /// estimate(frame): the detections tried per frame (each posed, refined and verified),
+    /// best detection scores first; bounds the frame's time.
+    int max_hypotheses = 12;
+    /// estimate(frame): a peak is also tried as the objects whose mesh box has like sides (a
+    /// depth-only detector confuses them; needs `meshes`).
+    bool alike_hypotheses = true;
+    /// Poses whose verified score (ObjectPose::score) is below this are rejected: dropped by
+    /// estimate(frame), marked rejected_low_score by estimate(frame, boxes).
+    double min_pose_score = 0.0;
+    /// estimate(frame) also returns the rejected hypotheses (after the accepted poses, with the
+    /// reason in ObjectPose::status), e.g. to draw them.
+    bool keep_rejected = false;
     /// detect(): the detector also sees the frame mirrored left-right and the two
     /// class-probability maps are averaged (two network passes; on the real LM-O images mean
     /// recall 45.9 -> 47.7, docs/results.md)
@@ -171,20 +210,27 @@ public:
     PoseEstimator(const PoseEstimator&) = delete;
     PoseEstimator& operator=(const PoseEstimator&) = delete;
 
-    /// One ObjectPose per box, in the order of `boxes`. Throws std::runtime_error for an
+    /// One ObjectPose per box, in the order of `boxes`, each verified against the depth when
+    /// its mesh is known (no box suppresses another). Throws std::runtime_error for an
     /// invalid frame: size <= 0, no depth or both depth buffers, depth_scale not finite and
     /// > 0, focal lengths not finite and > 0, principal point not finite.
     std::vector<ObjectPose> estimate(const FrameView& frame, const std::vector<ObjectBox>& boxes);
 
     /// G2L-Net's global localization: the detector (EstimatorOptions::detector) on what its
     /// export asks for (detector_input(): the RGB image, the depth with the intrinsics, or
-    /// both); the best box of each object it was trained on that scores at least
-    /// EstimatorOptions::min_detection_score, best first, with its heat-map peak. Throws
-    /// std::runtime_error when no detector was given or the frame lacks what it needs.
+    /// both); the best EstimatorOptions::max_instances peaks of each object it was trained on
+    /// that score at least EstimatorOptions::min_detection_score, best first, each with its
+    /// box. Throws std::runtime_error when no detector was given or the frame lacks what it
+    /// needs.
     std::vector<ObjectBox> detect(const FrameView& frame);
     /// What the detector sees: "rgb", "depth" or "rgbd"; "" without a detector.
     std::string detector_input() const;
-    /// The whole pipeline: detect(frame), then estimate(frame, those boxes).
+    /// The whole pipeline with hypotheses: detect(frame); each detection (and, with meshes,
+    /// the same peak as each object of a like shape) posed, refined and verified against the
+    /// depth; the best explained kept, a second pose of the same instance or one claiming the
+    /// depth of a better pose rejected, poses below min_pose_score dropped. Several instances
+    /// of one object each get a pose. Accepted poses first, best score first (then, with
+    /// keep_rejected, the rejected ones).
     std::vector<ObjectPose> estimate(const FrameView& frame);
 
     /// The obj_ids the model knows, ascending.

@@ -523,7 +523,10 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
             a.det_n++;
             a.det_hits += !r.det_miss();
         }
-        if (!r.found || r.det_miss()) {  // no pose, or a pose from no true detection
+        // No pose, or (a detection file or detector without the hypotheses road) a pose from
+        // no true detection. A reported pose is judged by its pose: a loose box around a right
+        // pose is the box's miss (det_recall_50), not the pose's.
+        if (!r.found || (r.det_miss() && !r.reported)) {
             a.misses++;
             a.rot_sym.push_back(180.0);
             a.adds_m.push_back(std::numeric_limits<double>::infinity());
@@ -668,8 +671,8 @@ std::string report_markdown(const EvalReport& r) {
         row(o, std::to_string(o.obj_id) + " " + o.name + (o.symmetric ? " (sym)" : ""));
     row(r.average, "**average**");
     if (r.average.det_recall_50 >= 0) {  // detector boxes: what the detector found
-        s += "\nDetection recall (the class's best box at IoU >= 0.5 with the visible GT box; an "
-             "instance without one counts as a miss above):";
+        s += "\nDetection recall (the box of the pose matched to the instance at IoU >= 0.5 "
+             "with the visible GT box; the pose itself is judged above by its error):";
         for (const auto& o : r.objects) {
             std::snprintf(line, sizeof line, " %d: %.1f%%", o.obj_id, o.det_recall_50);
             s += line;

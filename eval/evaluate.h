@@ -107,9 +107,9 @@ struct InstanceResult {
     /// IoU of the object points taken (seg net or oracle) with the GT object points among the
     /// crop points the seg net sees; -1 when there was no crop or neither set has a point.
     double seg_iou = -1;
-    /// With detections: IoU of the box used with the ground-truth visible box (0 without a
-    /// detection); -1 with ground-truth boxes. Below 0.5 the instance counts as a miss (its
-    /// pose is still estimated and written).
+    /// With detections: IoU of the box of the matched pose with the ground-truth visible box
+    /// (0 without one); -1 with ground-truth boxes. Below 0.5 the instance is a detection miss
+    /// (det_recall_50); its reported pose is still judged by its error.
     double det_iou = -1;
     bool det_miss() const { return det_iou >= 0 && det_iou < 0.5; }
     // Where it came from and what was estimated (evaluate_gt_boxes fills these; aggregate

@@ -290,6 +290,8 @@ TEST_CASE("PoseEstimator: the detector gives boxes with peaks, and the whole pip
     g2l::EstimatorOptions o;
     o.detector = dir + "/det.g2l";
     o.min_detection_score = 0.0;  // every class peak, whatever an untrained net scores
+    o.max_instances = 1;          // the best peak of each class
+    o.keep_rejected = true;       // estimate(frame) returns every hypothesis, posed or not
     g2l::PoseEstimator est(kModel, o);
     g2l::FrameView v = view_of(f);
     REQUIRE_THROWS_WITH(est.detect(v), Contains("the rgb detector '" + o.detector +
@@ -316,9 +318,20 @@ TEST_CASE("PoseEstimator: the detector gives boxes with peaks, and the whole pip
     for (size_t i = 0; i < direct.size(); ++i) CHECK(boxes_m[i].score == Approx(direct[i].score));
     const auto plain_direct = g2l::nn::detect(net, 4, v.rgb, v.width, v.height, 0.0f, 1);
     CHECK(std::abs(plain_direct[0].score - direct[0].score) > 1e-6f);
-    const auto poses = est.estimate(v);
+    const auto poses = est.estimate(v);  // no meshes: nothing verified, nothing suppressed
     REQUIRE(poses.size() == boxes.size());
-    for (size_t i = 0; i < poses.size(); ++i) REQUIRE(poses[i].obj_id == boxes[i].obj_id);
+    for (const auto& b : boxes) {
+        int n = 0;
+        for (const auto& p : poses) n += p.obj_id == b.obj_id && !p.verified;
+        CHECK(n == 1);
+    }
+    // Several peaks per class when asked: at least as many boxes, best first.
+    g2l::EstimatorOptions o3 = o;
+    o3.max_instances = 3;
+    const auto boxes3 = g2l::PoseEstimator(kModel, o3).detect(v);
+    CHECK(boxes3.size() >= boxes.size());
+    CHECK(boxes3.size() <= 6);
+    for (size_t i = 1; i < boxes3.size(); ++i) CHECK(boxes3[i - 1].score >= boxes3[i].score);
     // A peak with a valid depth pixel lifts to the centre at the peak pixel's ray.
     g2l::ObjectBox gt = box_of(f.frame->instances[0]);
     gt.peak_x = gt.x + gt.w / 2.0;

@@ -185,10 +185,15 @@ int main(int argc, char** argv) {
     app.add_option("--root", root, "BOP dataset root (instead of --config)");
     app.add_option("--split", split, "BOP split with --root");
     std::string detections_path, bop_csv, instances_path, vis_dir;
-    app.add_option("--boxes", boxes, "2D boxes: gt (ground truth), file (a BOP detection file "
-                                     "given with --detections) or det (the --detector's best "
-                                     "box per object, its heat-map peak lifted with depth as the "
-                                     "sphere centre)")
+    app.add_option("--boxes", boxes, "2D boxes: gt (ground truth: one pose per annotated "
+                                     "instance), file (a BOP detection file given with "
+                                     "--detections) or det (the --detector's peaks, each lifted "
+                                     "with depth as the sphere centre). file and det take the "
+                                     "library's hypotheses road (each detection posed, refined, "
+                                     "verified against the depth, duplicates and overlaps "
+                                     "rejected) and match the reported poses to the instances as "
+                                     "BOP does (pose_precision, det_precision_50, false "
+                                     "positives)")
         ->check(CLI::IsMember({"gt", "file", "det"}));
     app.add_option("--detections", detections_path,
                    "BOP detection file (JSON array of {scene_id, image_id, category_id, bbox, score, "

@@ -35,7 +35,12 @@ inline void check_stdout_at_exit() {
     if (stdout_reported()) return;  // the tool said it already (and exits 1)
     errno = 0;
     if (std::fflush(stdout) != 0 || std::ferror(stdout)) {
-        const int err = errno;
+        int err = errno;
+        if (err == 0) {  // a write failed earlier (a long text) and its errno is gone: ask again
+            std::clearerr(stdout);
+            errno = 0;
+            if (std::fputc('\n', stdout) == EOF || std::fflush(stdout) != 0) err = errno;
+        }
         std::fprintf(stderr, "%s: error: cannot write the standard output: %s\n", tool_name(),
                      err ? std::strerror(err) : "write error");
         std::_Exit(kRunError);

@@ -54,12 +54,15 @@ Verification verify_pose(const ModelKdTree& tree, const ModelInfo& info, const P
             p.u = -1;
             continue;
         }
-        p.u = int(std::floor(K.fx * q.x() / q.z() + K.cx));
-        p.v = int(std::floor(K.fy * q.y() / q.z() + K.cy));
-        if (p.u < 0 || p.v < 0 || p.u >= K.width || p.v >= K.height) {
+        // Tested in floating point before the cast: a far-off point must not overflow an int.
+        const double uf = std::floor(K.fx * q.x() / q.z() + K.cx);
+        const double vf = std::floor(K.fy * q.y() / q.z() + K.cy);
+        if (!(uf >= 0 && vf >= 0 && uf < K.width && vf < K.height)) {
             p.u = -1;
             continue;
         }
+        p.u = int(uf);
+        p.v = int(vf);
         u0 = std::min(u0, p.u), u1 = std::max(u1, p.u);
         v0 = std::min(v0, p.v), v1 = std::max(v1, p.v);
     }

@@ -92,7 +92,7 @@ TEST_CASE("aggregate: instances of unknown objects or bad diameters throw", "[tr
 }
 
 TEST_CASE("evaluate_instances: detector boxes take the hypotheses road and are matched as BOP "
-          "does; undetected instances are misses", "[train][eval]") {
+          "does, undetected instances are misses", "[train][eval]") {
     const std::string root = testing::fixture_dir() + "/ycbv_mini";
     const data::Dataset ds = data::open_bop(root, "train_real", {});
     nn::LoadedModel m = nn::load_model(std::string(G2L_SOURCE_DIR) + "/models/ycbv_sim2real.g2l");
@@ -191,7 +191,7 @@ TEST_CASE("evaluate_instances: detector boxes take the hypotheses road and are m
                         Catch::Contains("no scene_id / image_id"));
 }
 
-TEST_CASE("pr_curve and aggregate: false positives lower the precision only; fit_score_model "
+TEST_CASE("pr_curve and aggregate: false positives lower the precision only, fit_score_model "
           "learns a separating score", "[train][eval]") {
     std::map<int, ObjectMeta> meta{{1, {"a", 100.0, false, 1}}};
     std::vector<InstanceResult> rs;

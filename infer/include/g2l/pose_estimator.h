@@ -166,7 +166,10 @@ struct EstimatorOptions {
     /// A 2D detector export (g2l_train with a "task": "detector" config writes
     /// <run_dir>/detector.g2l): enables detect() and estimate(frame) without boxes.
     std::string detector;
-    double min_detection_score = 0.3;  ///< detect(): boxes scoring less are dropped
+    /// detect() / estimate(frame): peaks scoring less are dropped. Low, because estimate(frame)
+    /// verifies every hypothesis against the depth: a weak peak of a partly hidden object is
+    /// worth trying (HypothesisOptions::min_det_score, what g2l_eval --boxes det uses).
+    double min_detection_score = 0.1;
     /// detect() / estimate(frame): the best peaks kept per object, so several instances of one
     /// object each get a pose (bin picking).
     int max_instances = 3;

@@ -115,3 +115,91 @@ TEST_CASE("PoseEstimator: a box's pose does not depend on the other boxes of the
         for (size_t k = 0; k < 3; ++k) CHECK(one[0].t[k] == all[i].t[k]);
     }
 }
+
+TEST_CASE("FramePipeline: candidates spend the budget on each object's best peak first, then "
+          "its other peaks, then like-shaped objects; hypotheses suppress duplicates",
+          "[infer]") {
+    using namespace g2l::infer;
+    g2l::nn::LoadedModel m = g2l::nn::load_model(kModel);
+    PipelineOptions po;
+    po.refine = Refine::turns;  // the library's default with meshes
+    FramePipeline pipe(PipelineModel::of(m), po);
+    const std::string root = g2l::testing::fixture_dir() + "/ycbv_mini";
+    const g2l::data::Dataset ds = g2l::data::open_bop(root, "train_real", {});
+    const g2l::geom::Mesh& gelatin = ds.load_model_mesh(8);
+    pipe.add_mesh(8, gelatin, ds.model(8).info);
+    pipe.add_mesh(14, ds.load_model_mesh(14), ds.model(14).info);
+    // Object 9 gets the gelatin box's mesh 5 % larger: a like shape (object 14, the mug, is not).
+    g2l::geom::Mesh bigger = gelatin;
+    bigger.vertices *= 1.05f;
+    g2l::geom::ModelInfo bigger_info = ds.model(8).info;
+    bigger_info.diameter *= 1.05;
+    bigger_info.min *= 1.05;
+    bigger_info.size *= 1.05;
+    pipe.add_mesh(9, bigger, bigger_info);
+    auto det = [](int id, double score, int x) {
+        Candidate c;
+        c.obj_id = c.det_obj_id = id;
+        c.box = {x, 100, 50, 50};
+        c.det_score = score;
+        return c;
+    };
+    const std::vector<Candidate> dets = {det(8, 0.9, 0),  det(8, 0.5, 60), det(8, 0.4, 120),
+                                         det(8, 0.3, 180), det(14, 0.2, 240), det(999, 0.95, 0),
+                                         det(14, 0.05, 300)};
+    HypothesisOptions ho;  // 3 per object, 12 in all, detections >= 0.1, like within 15 %
+    const auto c = pipe.candidates(dets, ho);
+    // Best own peaks (8 @ 0.9, 14 @ 0.2), the other own peaks (8 @ 0.5, 0.4; 0.3 is over the
+    // cap of 3), then object 9 borrowing object 8's peaks (0.8 x their score; 3 at most).
+    std::vector<std::pair<int, double>> got;
+    for (const auto& x : c) got.emplace_back(x.obj_id, x.det_score);
+    const std::vector<std::pair<int, double>> want = {{8, 0.9}, {14, 0.2}, {8, 0.5}, {8, 0.4},
+                                                      {9, 0.72}, {9, 0.4}, {9, 0.32}};
+    REQUIRE(got.size() == want.size());
+    for (size_t i = 0; i < want.size(); ++i) {
+        INFO("candidate " << i);
+        CHECK(got[i].first == want[i].first);
+        CHECK(got[i].second == Approx(want[i].second));
+    }
+    CHECK(c[4].det_obj_id == 8);  // borrowed
+    ho.alike_frac = 0;             // off: no borrowed peak
+    CHECK(pipe.candidates(dets, ho).size() == 4);
+    ho.max_hypotheses = 2;         // the budget: the best own peaks only
+    const auto two = pipe.candidates(dets, ho);
+    REQUIRE(two.size() == 2);
+    CHECK(two[0].obj_id == 8);
+    CHECK(two[1].obj_id == 14);
+    ho.max_per_object = 0;
+    CHECK_THROWS_WITH(pipe.candidates(dets, ho), Catch::Matchers::Contains("max_per_object"));
+
+    // Two detections of one instance (the same GT box, one shifted by 4 px): two poses at the
+    // same place, the lower-scored one a duplicate (or an overlap) of the other, naming it.
+    const auto& f = ds.frames().front();
+    int w = 0, h = 0;
+    const std::vector<float> depth = ds.load_depth_mm(f, &w, &h);
+    g2l::geom::Intrinsics K = f.K;
+    K.width = w, K.height = h;
+    const auto& inst = f.instances.front();
+    Candidate a;
+    a.obj_id = a.det_obj_id = inst.obj_id;
+    a.box = inst.box();
+    a.det_score = 0.8;
+    Candidate b = a;
+    b.box.x += 4;
+    b.det_score = 0.6;
+    std::vector<Hypothesis> hs;
+    pipe.hypotheses(depth.data(), K, {b, a}, HypothesisOptions{}, &hs);
+    REQUIRE(hs.size() == 2);
+    CHECK(hs[0].accepted());
+    CHECK(hs[0].verified);
+    CHECK(hs[0].score > 0.5);
+    CHECK((hs[1].verdict == Verdict::duplicate || hs[1].verdict == Verdict::overlap));
+    CHECK(hs[1].rival == 0);
+    CHECK(hs[1].score <= hs[0].score);
+    // A threshold above every score rejects both as low-scored; nothing is accepted.
+    HypothesisOptions strict;
+    strict.min_score = 1.0;
+    pipe.hypotheses(depth.data(), K, {a, b}, strict, &hs);
+    for (const auto& x : hs) CHECK(x.verdict == Verdict::low_score);
+    CHECK(std::string(to_string(Verdict::overlap)) == "overlap");
+}

@@ -459,7 +459,9 @@ int main(int argc, char** argv) {
             const auto& ds = sets_to_eval[i].second;
             std::vector<g2l::data::Detection> det_boxes;
             if (boxes == "det") {  // the detector on every frame (what its input needs), timed
-                det_boxes = g2l::eval::run_detector_on(*det, ds, 0.05f, det_mirror);
+                // Peaks per class: as many as the hypotheses road may try of one object.
+                det_boxes = g2l::eval::run_detector_on(*det, ds, 0.05f, det_mirror,
+                                                       std::max(3, hyp_opt.max_per_object));
                 eo.detections = &det_boxes;
             }
             eo.hypotheses = hyp_opt;

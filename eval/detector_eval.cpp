@@ -206,7 +206,7 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
 }
 
 std::vector<data::Detection> run_detector_on(const nn::LoadedDetector& det, const data::Dataset& ds,
-                                             float min_score, bool mirror) {
+                                             float min_score, bool mirror, int max_per_class) {
     G2L_CHECK(det.net, "run_detector_on: no network");
     std::vector<data::Detection> out;
     for (const data::Frame& fr : ds.frames()) {
@@ -220,7 +220,7 @@ std::vector<data::Detection> run_detector_on(const nn::LoadedDetector& det, cons
         }
         int w = 0, h = 0;
         double ms = 0;
-        const auto dets = detect_frame(det, ds, fr, min_score, 3, mirror, &w, &h, &ms);
+        const auto dets = detect_frame(det, ds, fr, min_score, max_per_class, mirror, &w, &h, &ms);
         const double secs = ms / 1000;
         for (const nn::Detection& d : dets) {
             data::Detection o;

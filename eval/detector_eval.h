@@ -48,9 +48,10 @@ DetectorEvalResult evaluate_detector(const nn::LoadedDetector& det, const data::
 /// peak (scene_id from the scene folder name, image_id, obj_id, box, score, heat-map peak, the
 /// frame's detector time), as g2l_eval --boxes det feeds them to the pose evaluation. Throws
 /// for a scene name that is not a number (BOP scene ids are). `mirror`: nn::detect's
-/// mirrored second pass (both functions).
+/// mirrored second pass (both functions). At most `max_per_class` peaks of one class.
 std::vector<data::Detection> run_detector_on(const nn::LoadedDetector& det, const data::Dataset& ds,
-                                             float min_score = 0.05f, bool mirror = false);
+                                             float min_score = 0.05f, bool mirror = false,
+                                             int max_per_class = 3);
 
 /// The table of a result (per object and mean), plain text.
 std::string detector_eval_table(const DetectorEvalResult& r);

@@ -9,6 +9,12 @@ cmake --install "$build" --prefix "$tmp/prefix" > "$tmp/install.log"
 for f in include/g2l/pose_estimator.h share/g2l/models/ycbv_sim2real.g2l; do
     [ -f "$tmp/prefix/$f" ] || { echo "FAIL: $f not installed"; exit 1; }
 done
+# The installed programs start as they are (their RPATH finds libg2l.so.0 relative to them).
+for tool in g2l_infer g2l_bench; do
+    [ -x "$tmp/prefix/bin/$tool" ] || { echo "FAIL: bin/$tool not installed"; exit 1; }
+    env -u LD_LIBRARY_PATH "$tmp/prefix/bin/$tool" --help > "$tmp/$tool.help" 2>&1 \
+        || { echo "FAIL: the installed $tool does not start:"; cat "$tmp/$tool.help"; exit 1; }
+done
 lib=$(ls "$tmp"/prefix/lib*/libg2l.so 2>/dev/null | head -n1)
 [ -n "$lib" ] || { echo "FAIL: libg2l.so not installed"; ls -R "$tmp/prefix"; exit 1; }
 # Only g2l:: symbols (and inline std template instances) are exported: the engine is hidden.

@@ -432,6 +432,11 @@ int main(int argc, char** argv) {
                 return g2l::cli::kRunError;
             }
         }
+        // A split without a frame would print a table of 0.0 % and exit 0: a wrong root or
+        // split name must be an error.
+        for (const auto& [name, ds] : sets_to_eval)
+            G2L_CHECK(!ds.frames().empty(), "'", name, "' has no frame (its scene_gt.json files list no image): check "
+                      "--root and --split");
         std::string json_all = "[";
         for (size_t i = 0; i < sets_to_eval.size(); ++i) {
             g2l::eval::EvalOptions eo;

@@ -246,6 +246,13 @@ expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --ca
 has "duplicate key 'fx'"
 expect 2 "$B/apps/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real --boxes file
 has "needs --detections"
+# A split with no frame is an error, not a table of 0.0 %.
+mkdir -p "$T/emptyroot/test/000001/rgb" "$T/emptyroot/test/000001/depth"
+echo '{}' > "$T/emptyroot/test/000001/scene_gt.json"
+echo '{}' > "$T/emptyroot/test/000001/scene_camera.json"
+ln -sfn "$S/tests/data/ycbv_mini/models" "$T/emptyroot/models"
+expect 1 "$B/apps/g2l_eval" --checkpoint "$MODEL" --root "$T/emptyroot" --split test
+has "has no frame"
 expect 0 "$B/apps/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
     --boxes file --detections "$T/dets.json" --bop-csv "$T/res.csv" --instances "$T/inst.jsonl" --vis "$T/vis"
 head -n1 "$T/res.csv" | grep -q "^scene_id,im_id,obj_id,score,R,t,time$" || fail "BOP CSV header"

@@ -258,6 +258,10 @@ int main(int argc, char** argv) {
                    "--boxes det / file: a peak is also tried as each object whose sorted box "
                    "sides lie within this fraction of its own (0 = off)")
         ->check(CLI::Range(0.0, 1.0));
+    app.add_option("--cover-score", hyp_opt.cover_score,
+                   "--boxes det / file: a detection whose peak lies on depth that an earlier "
+                   "verified pose scoring at least this explains is not posed (above 1 = off)")
+        ->check(CLI::Range(0.0, 2.0));
     std::string pr_png, hyps_path, fit_score;
     app.add_option("--fit-score", fit_score,
                    "--boxes det / file: fit the score model (the probability that a verified "

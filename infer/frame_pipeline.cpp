@@ -259,6 +259,7 @@ const char* to_string(Verdict v) {
         case Verdict::low_score: return "low score";
         case Verdict::duplicate: return "duplicate";
         case Verdict::overlap: return "overlap";
+        case Verdict::covered: return "covered";
     }
     return "unknown verdict";
 }
@@ -361,23 +362,58 @@ void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
     G2L_CHECK(opt.min_score >= 0 && opt.duplicate_frac >= 0 && opt.overlap_frac > 0,
               "FramePipeline::hypotheses: options out of range (min_score ", opt.min_score,
               ", duplicate_frac ", opt.duplicate_frac, ", overlap_frac ", opt.overlap_frac, ")");
-    // 1. Every candidate through the one road: crop, networks, refinement.
-    std::vector<PoseRequest> reqs(cands.size());
-    for (size_t i = 0; i < cands.size(); ++i) {
-        reqs[i].obj_id = cands[i].obj_id;
-        reqs[i].box = cands[i].box;
-        reqs[i].peak_x = cands[i].peak_x;
-        reqs[i].peak_y = cands[i].peak_y;
-    }
-    std::vector<PoseOutcome> outs;
-    run(depth, K, reqs, &outs);
-    // 2. Verification against the depth.
+    // 1-2. Each candidate, in order, through the one road (crop, networks, refinement) and the
+    //      verification against the depth, unless an earlier confident pose already explains
+    //      the depth at its peak.
+    const int fc = opt.verify.footprint_cell_px;
+    const int fw = (K.width + fc - 1) / fc;
+    const double cover = std::max(opt.cover_score, opt.min_score);
     std::vector<Hypothesis> hs(cands.size());
+    std::vector<PoseRequest> req(1);
+    std::vector<PoseOutcome> outs;
     for (size_t i = 0; i < cands.size(); ++i) {
         Hypothesis& h = hs[i];
         h.cand = cands[i];
-        h.outcome = std::move(outs[i]);
         h.score = h.cand.det_score;
+        if (cover <= 1.0) {
+            const double px = h.cand.peak_x >= 0 ? h.cand.peak_x : h.cand.box.x + 0.5 * h.cand.box.w;
+            const double py = h.cand.peak_y >= 0 ? h.cand.peak_y : h.cand.box.y + 0.5 * h.cand.box.h;
+            if (px >= 0 && py >= 0 && px < K.width && py < K.height) {
+                // The footprint holds the cells of the explained model points, a sample of the
+                // surface: the peak's cell or one of its 8 neighbours.
+                const int cx = int(px) / fc, cy = int(py) / fc;
+                auto claims = [&](const std::vector<int32_t>& fp) {
+                    for (int dy = -1; dy <= 1; ++dy)
+                        for (int dx = -1; dx <= 1; ++dx)
+                            if (cx + dx >= 0 && cx + dx < fw && cy + dy >= 0 &&
+                                std::binary_search(fp.begin(), fp.end(),
+                                                   int32_t((cy + dy) * fw + cx + dx)))
+                                return true;
+                    return false;
+                };
+                for (size_t k = 0; k < i; ++k) {
+                    const Hypothesis& w = hs[k];
+                    if (w.verified && w.score >= cover && claims(w.check.footprint)) {
+                        h.verdict = Verdict::covered;
+                        h.rival = int(k);
+                        break;
+                    }
+                }
+            }
+            if (h.verdict == Verdict::covered) {
+                h.outcome.obj_id = h.cand.obj_id;
+                h.outcome.status = PoseStatus::no_depth;  // never posed (see the verdict)
+                h.score = 0;
+                continue;
+            }
+        }
+        req[0] = PoseRequest{};
+        req[0].obj_id = h.cand.obj_id;
+        req[0].box = h.cand.box;
+        req[0].peak_x = h.cand.peak_x;
+        req[0].peak_y = h.cand.peak_y;
+        run(depth, K, req, &outs);
+        h.outcome = std::move(outs[0]);
         if (!h.outcome.ok()) continue;
         if (mesh(h.cand.obj_id)) {
             const auto t0 = Clock::now();
@@ -394,13 +430,15 @@ void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
     std::vector<size_t> order(hs.size());
     for (size_t i = 0; i < order.size(); ++i) order[i] = i;
     std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
-        const bool oa = hs[a].outcome.ok(), ob = hs[b].outcome.ok();
+        const bool oa = hs[a].outcome.ok() && hs[a].verdict != Verdict::covered;
+        const bool ob = hs[b].outcome.ok() && hs[b].verdict != Verdict::covered;
         if (oa != ob) return oa;
         return hs[a].score > hs[b].score;
     });
     std::vector<size_t> kept;
     for (const size_t i : order) {
         Hypothesis& h = hs[i];
+        if (h.verdict == Verdict::covered) continue;
         if (!h.outcome.ok()) {
             h.verdict = Verdict::no_pose;
             continue;

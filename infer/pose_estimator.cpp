@@ -366,6 +366,7 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f) {
     std::vector<ObjectPose> out;
     for (const infer::Hypothesis& h : m.hyps) {
         if (!h.accepted() && !m.options.keep_rejected) continue;
+        if (h.verdict == infer::Verdict::covered) continue;  // never posed: no pose to return
         ObjectPose p = to_public(h.outcome);
         p.score = p.detection_score = h.cand.det_score;
         if (h.verified) set_check(h.check, h.score, &p);
@@ -375,7 +376,8 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f) {
             case infer::Verdict::duplicate: p.status = PoseStatus::rejected_duplicate; break;
             case infer::Verdict::overlap: p.status = PoseStatus::rejected_overlap; break;
             case infer::Verdict::accepted:
-            case infer::Verdict::no_pose: break;
+            case infer::Verdict::no_pose:
+            case infer::Verdict::covered: break;
         }
         out.push_back(p);
     }

@@ -188,7 +188,9 @@ TEST_CASE("FramePipeline: candidates spend the budget on each object's best peak
     b.box.x += 4;
     b.det_score = 0.6;
     std::vector<Hypothesis> hs;
-    pipe.hypotheses(depth.data(), K, {b, a}, HypothesisOptions{}, &hs);
+    HypothesisOptions all_posed;
+    all_posed.cover_score = 2.0;  // off: both are posed, the lower score loses
+    pipe.hypotheses(depth.data(), K, {b, a}, all_posed, &hs);
     REQUIRE(hs.size() == 2);
     CHECK(hs[0].accepted());
     CHECK(hs[0].verified);
@@ -196,6 +198,16 @@ TEST_CASE("FramePipeline: candidates spend the budget on each object's best peak
     CHECK((hs[1].verdict == Verdict::duplicate || hs[1].verdict == Verdict::overlap));
     CHECK(hs[1].rival == 0);
     CHECK(hs[1].score <= hs[0].score);
+    CHECK(hs[1].outcome.ok());
+    // With the default cover: the second look at the same object (its box centre on depth the
+    // first, confident pose explains) is not posed at all.
+    pipe.hypotheses(depth.data(), K, {a, b}, HypothesisOptions{}, &hs);
+    REQUIRE(hs.size() == 2);
+    CHECK(hs[0].accepted());
+    CHECK(hs[1].verdict == Verdict::covered);
+    CHECK(hs[1].rival == 0);
+    CHECK_FALSE(hs[1].outcome.ok());
+    CHECK(std::string(to_string(Verdict::covered)) == "covered");
     // A threshold above every score rejects both as low-scored; nothing is accepted.
     HypothesisOptions strict;
     strict.min_score = 1.0;

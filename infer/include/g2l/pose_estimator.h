@@ -231,7 +231,8 @@ public:
     /// The whole pipeline with hypotheses: detect(frame); each detection (and, with meshes,
     /// the same peak as each object of a like shape) posed, refined and verified against the
     /// depth; the best explained kept, a second pose of the same instance or one claiming the
-    /// depth of a better pose rejected, poses below min_pose_score dropped. Several instances
+    /// depth of a better pose rejected (a detection whose peak lies on depth a confident pose
+    /// already explains is not even posed), poses below min_pose_score dropped. Several instances
     /// of one object each get a pose. Accepted poses first, best score first (then, with
     /// keep_rejected, the rejected ones).
     std::vector<ObjectPose> estimate(const FrameView& frame);

@@ -97,6 +97,21 @@ double rows_iou(const std::vector<int>& seen, const std::vector<int>& taken,
     return uni ? double(inter) / double(uni) : -1.0;
 }
 
+// What a reported pose (an accepted hypothesis) tells of itself, matched or not.
+void set_reported(const infer::Hypothesis& hy, InstanceResult* r) {
+    r->score = hy.score;
+    r->est = hy.outcome.pose;
+    r->found = true;
+    r->reported = true;
+    r->det_score = hy.cand.det_score;
+    if (hy.verified) {
+        r->verify_score = hy.check.score;
+        r->explained = hy.check.explained;
+        r->violation = hy.check.violation;
+        r->seg_agree = hy.check.seg_agree;
+    }
+}
+
 }  // namespace
 
 EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
@@ -300,23 +315,13 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                 const geom::Box2i gb = inst.box();
                 r.det_iou = geom::box_iou(o.box.x, o.box.y, o.box.w, o.box.h, gb.x, gb.y, gb.w,
                                           gb.h);
-                r.score = hy.score;
+                set_reported(hy, &r);
                 r.ms = o.ms_crop + o.ms_seg + o.ms_t + o.ms_rot + o.ms_refine;
                 r.refine_hyp = o.refine_hypothesis;
                 r.refine_cluster = o.refine_cluster;
                 r.fit_mm = o.fit_mm;
-                r.est = o.pose;
-                r.found = true;
-                r.reported = true;
                 r.right = right[size_t(est_of[g])];
                 r.box_hit = box_hit[size_t(est_of[g])] == 1;
-                r.det_score = hy.cand.det_score;
-                if (hy.verified) {
-                    r.verify_score = hy.check.score;
-                    r.explained = hy.check.explained;
-                    r.violation = hy.check.violation;
-                    r.seg_agree = hy.check.seg_agree;
-                }
                 r.add_mm = geom::add(o.pose, inst.pose, og.pts);
                 r.adds_mm = geom::adds(o.pose, inst.pose, og.pts);
                 r.addsym_mm = geom::add_sym(o.pose, inst.pose, og.pts, og.syms);
@@ -362,20 +367,10 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                 r.image_id = f.image_id;
                 r.inst_index = -1;
                 r.status = "false positive";
-                r.score = hy.score;
+                set_reported(hy, &r);
                 r.box = hy.outcome.box;
-                r.est = hy.outcome.pose;
-                r.found = true;
-                r.reported = true;
                 r.false_positive = true;
                 r.box_hit = box_hit[hi] == 1;
-                r.det_score = hy.cand.det_score;
-                if (hy.verified) {
-                    r.verify_score = hy.check.score;
-                    r.explained = hy.check.explained;
-                    r.violation = hy.check.violation;
-                    r.seg_agree = hy.check.seg_agree;
-                }
                 results.push_back(r);
             }
             continue;

@@ -63,6 +63,8 @@ struct PoseEstimator::Impl {
     std::vector<infer::PoseRequest> requests;
     std::vector<infer::PoseOutcome> outcomes;
     std::vector<infer::Hypothesis> hyps;
+    // Under the mutex: the threads, the frame's depth in mm and its intrinsics.
+    const float* begin_frame(const FrameView& f, geom::Intrinsics* K);
     infer::HypothesisOptions hypothesis_options() const {
         infer::HypothesisOptions h;
         h.max_per_object = options.max_instances;
@@ -258,16 +260,20 @@ void set_check(const geom::Verification& v, double score, ObjectPose* p) {
 
 }  // namespace
 
+const float* PoseEstimator::Impl::begin_frame(const FrameView& f, geom::Intrinsics* K) {
+    if (options.threads > 0) set_num_threads(options.threads);
+    K->fx = f.K.fx, K->fy = f.K.fy, K->cx = f.K.cx, K->cy = f.K.cy;
+    K->width = f.width, K->height = f.height;
+    return depth_in_mm(f, depth_mm);
+}
+
 std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
                                                 const std::vector<ObjectBox>& boxes) {
     check_frame(f, "PoseEstimator::estimate");
     Impl& m = *impl_;
     std::lock_guard<std::mutex> lock(m.mutex);
-    if (m.options.threads > 0) set_num_threads(m.options.threads);
-    const float* depth = depth_in_mm(f, m.depth_mm);
     geom::Intrinsics K;
-    K.fx = f.K.fx, K.fy = f.K.fy, K.cx = f.K.cx, K.cy = f.K.cy;
-    K.width = f.width, K.height = f.height;
+    const float* depth = m.begin_frame(f, &K);
     m.requests.resize(boxes.size());
     for (size_t i = 0; i < boxes.size(); ++i) {
         const ObjectBox& b = boxes[i];
@@ -347,11 +353,8 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f) {
     check_frame(f, "PoseEstimator::estimate");
     Impl& m = *impl_;
     std::lock_guard<std::mutex> lock(m.mutex);
-    if (m.options.threads > 0) set_num_threads(m.options.threads);
-    const float* depth = depth_in_mm(f, m.depth_mm);
     geom::Intrinsics K;
-    K.fx = f.K.fx, K.fy = f.K.fy, K.cx = f.K.cx, K.cy = f.K.cy;
-    K.width = f.width, K.height = f.height;
+    const float* depth = m.begin_frame(f, &K);
     std::vector<infer::Candidate> dets;
     for (const ObjectBox& b : boxes) {
         infer::Candidate c;

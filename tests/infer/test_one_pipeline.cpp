@@ -117,7 +117,7 @@ TEST_CASE("PoseEstimator: a box's pose does not depend on the other boxes of the
 }
 
 TEST_CASE("FramePipeline: candidates spend the budget on each object's best peak first, then "
-          "its other peaks, then like-shaped objects; hypotheses suppress duplicates",
+          "its other peaks, then like-shaped objects, hypotheses suppress duplicates",
           "[infer]") {
     using namespace g2l::infer;
     g2l::nn::LoadedModel m = g2l::nn::load_model(kModel);

@@ -97,6 +97,18 @@ double rows_iou(const std::vector<int>& seen, const std::vector<int>& taken,
     return uni ? double(inter) / double(uni) : -1.0;
 }
 
+// The errors of an estimate against its instance's ground truth.
+void set_errors(const geom::Pose& est, const geom::Pose& gt, const ObjGeom& og,
+                InstanceResult* r) {
+    r->add_mm = geom::add(est, gt, og.pts);
+    r->adds_mm = geom::adds(est, gt, og.pts);
+    // Modulo the geometric symmetries S: the GT pose composed with S is as right.
+    r->addsym_mm = geom::add_sym(est, gt, og.pts, og.syms);
+    r->rot_sym_deg = geom::rotation_error_sym_deg(est.R, gt.R, og.syms);
+    r->rot_deg = geom::rotation_error_deg(est.R, gt.R);
+    r->trans_mm = geom::translation_error(est.t, gt.t);
+}
+
 // What a reported pose (an accepted hypothesis) tells of itself, matched or not.
 void set_reported(const infer::Hypothesis& hy, InstanceResult* r) {
     r->score = hy.score;
@@ -322,12 +334,7 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                 r.fit_mm = o.fit_mm;
                 r.right = right[size_t(est_of[g])];
                 r.box_hit = box_hit[size_t(est_of[g])] == 1;
-                r.add_mm = geom::add(o.pose, inst.pose, og.pts);
-                r.adds_mm = geom::adds(o.pose, inst.pose, og.pts);
-                r.addsym_mm = geom::add_sym(o.pose, inst.pose, og.pts, og.syms);
-                r.rot_sym_deg = geom::rotation_error_sym_deg(o.pose.R, inst.pose.R, og.syms);
-                r.rot_deg = geom::rotation_error_deg(o.pose.R, inst.pose.R);
-                r.trans_mm = geom::translation_error(o.pose.t, inst.pose.t);
+                set_errors(o.pose, inst.pose, og, &r);
                 results.push_back(r);
             }
             for (size_t hi = 0; hi < hyps.size(); ++hi) {
@@ -467,13 +474,7 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
             }
             r.est = o.pose;
             r.found = true;
-            r.add_mm = geom::add(o.pose, inst.pose, og.pts);
-            r.adds_mm = geom::adds(o.pose, inst.pose, og.pts);
-            // Modulo the geometric symmetries S: the GT pose composed with S is as right.
-            r.addsym_mm = geom::add_sym(o.pose, inst.pose, og.pts, og.syms);
-            r.rot_sym_deg = geom::rotation_error_sym_deg(o.pose.R, inst.pose.R, og.syms);
-            r.rot_deg = geom::rotation_error_deg(o.pose.R, inst.pose.R);
-            r.trans_mm = geom::translation_error(o.pose.t, inst.pose.t);
+            set_errors(o.pose, inst.pose, og, &r);
         }
         results.insert(results.end(), res.begin(), res.end());
     }

@@ -71,7 +71,9 @@ case "$cmd" in
         echo "  trained   G2L-Net (narrow width) on renders of the 2 fixture meshes: $run_dir (config, logs, checkpoints)"
         echo "  measured  the shipped detector + pose model + refinement on the 2 real YCB-Video frames"
         echo "            of tests/data/ycbv_mini (table above; $run_dir/eval_pipeline.json)"
-        echo "  picture   yellow: the detector's box, green: ground truth, blue: the estimated pose"
+        echo "  picture   yellow: the detector's box, green: ground truth, blue: a reported pose with"
+        echo "            its score (the probability that it is right, from the depth verification),"
+        echo "            red: a rejected hypothesis with the reason (duplicate, overlap, low score)"
         echo "$pic"
         ;;
     toy)

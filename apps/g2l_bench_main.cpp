@@ -103,6 +103,78 @@ std::vector<g2l::tools::BenchFigure> bench_frame(int reps, const std::string& mo
             {"frame_hypotheses_ms", hms[hms.size() / 2], "ms", hwhat}};
 }
 
+// track_frame_ms: g2l::PoseTracker over a real video (the 20 consecutive frames of
+// ../shared/data/ycbv/train_real/000001, 4 objects; else the fixture's two frames, alternated),
+// `passes` times over it: each frame's track() call (its depth already in memory). The median is
+// a followed frame's time; the mean includes the frames the detector runs on (the first, a lost
+// pose, a weak pose every 3 frames, every 10 frames).
+std::vector<g2l::tools::BenchFigure> bench_track(int passes, const std::string& model,
+                                                 const std::string& detector) {
+    namespace fs = std::filesystem;
+    const std::string shared = g2l::train::shared_data_root("");
+    std::string root = shared + "/ycbv", scene = "000001";
+    if (!fs::is_directory(root + "/train_real/" + scene)) {
+        root = std::string(G2L_SOURCE_DIR) + "/tests/data/ycbv_mini";
+        scene = "000000";
+    }
+    const g2l::data::BopDataset ds = g2l::data::open_bop(root, "train_real", {});
+    struct Frame {
+        std::vector<uint16_t> depth;
+        g2l::FrameView v;
+    };
+    std::vector<const g2l::data::Frame*> scene_frames;  // in the order of the video
+    for (const auto& f : ds.frames())
+        if (f.scene == scene) scene_frames.push_back(&f);
+    std::sort(scene_frames.begin(), scene_frames.end(),
+              [](const auto* a, const auto* b) { return a->image_id < b->image_id; });
+    std::vector<Frame> frames;
+    for (const g2l::data::Frame* fp : scene_frames) {
+        const g2l::data::Frame& f = *fp;
+        Frame fr;
+        int w = 0, h = 0;
+        fr.depth = g2l::data::load_depth_png(f.depth_path, &w, &h);
+        fr.v.width = w, fr.v.height = h;
+        fr.v.depth_scale = f.depth_scale;
+        fr.v.K = {f.K.fx, f.K.fy, f.K.cx, f.K.cy};
+        frames.push_back(std::move(fr));
+    }
+    G2L_CHECK(!frames.empty(), "bench_track: no frame in ", root, "/train_real/", scene);
+    if (frames.size() < 10) {  // the fixture: its frames back and forth, 20 in all
+        std::vector<Frame> seq;
+        for (size_t i = 0; i < 20; ++i) seq.push_back(frames[(i / 2) % frames.size()]);
+        frames = std::move(seq);
+    }
+    for (Frame& f : frames) f.v.depth_u16 = f.depth.data();
+    g2l::EstimatorOptions opt;
+    opt.detector = detector;
+    opt.meshes = root + "/models";
+    g2l::PoseEstimator est(model, opt);
+    std::vector<double> ms;
+    int detected = 0, poses = 0;
+    for (int pass = 0; pass < passes + 1; ++pass) {
+        g2l::PoseTracker tracker(est);
+        for (const Frame& f : frames) {
+            const auto t0 = std::chrono::steady_clock::now();
+            const auto out = tracker.track(f.v);
+            const double dt = std::chrono::duration<double, std::milli>(
+                                  std::chrono::steady_clock::now() - t0).count();
+            if (pass == 0) continue;  // warm-up
+            ms.push_back(dt);
+            detected += tracker.detected();
+            for (const auto& p : out) poses += p.ok();
+        }
+    }
+    double mean = 0;
+    for (const double m : ms) mean += m / double(ms.size());
+    std::sort(ms.begin(), ms.end());
+    const std::string what = g2l::cat(
+        "g2l::PoseTracker on ", root, "/train_real/", scene, ": ", frames.size(), " frames x ",
+        passes, ", ", double(poses) / double(ms.size()), " poses per frame, the detector on ",
+        detected, " of ", ms.size(), " frames");
+    return {{"track_frame_ms", ms[ms.size() / 2], "ms", what + " (median)"},
+            {"track_frame_mean_ms", mean, "ms", what + " (mean)"}};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -178,6 +250,8 @@ int main(int argc, char** argv) {
             const auto ff = bench_frame(quick ? 2 : frame_reps, frame_model, frame_detector,
                                         frame_objects);
             figs.insert(figs.end(), ff.begin(), ff.end());
+            const auto tf = bench_track(quick ? 1 : 3, frame_model, frame_detector);
+            figs.insert(figs.end(), tf.begin(), tf.end());
         }
         if (train_reps > 0 && !pose_only) {
             // The setting: paper architecture, batch 8, 1500 -> 1000 points.

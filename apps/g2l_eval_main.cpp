@@ -1,6 +1,9 @@
 // SPDX-License-Identifier: MIT
 // g2l_eval: the pose stage of G2L-Net with ground-truth 2D boxes over a BOP split.
 #include <CLI/CLI.hpp>
+#include <cctype>
+#include <sstream>
+#include <optional>
 
 #include "core/cli.h"
 #include <cmath>
@@ -11,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "data/bop.h"
+#include "data/dataset.h"
 #include "data/detections.h"
 #include "data/draw.h"
 #include "geometry/metrics.h"
@@ -195,6 +199,17 @@ int main(int argc, char** argv) {
                                      "BOP does (pose_precision, det_precision_50, false "
                                      "positives)")
         ->check(CLI::IsMember({"gt", "file", "det"}));
+    std::string symmetric;
+    app.add_option("--symmetric", symmetric,
+                   "the objects scored with ADD-S in acc_add_s_10 and marked (sym): a published "
+                   "convention (ycbv: 13,16,19,20,21; lm / lmo: 10,11), object ids (13,16), or "
+                   "none; default: those whose models_info.json declares symmetries (never "
+                   "guessed from the folder's name)");
+    std::string poses_path;
+    app.add_option("--poses", poses_path,
+                   "score the poses of a BOP results CSV (g2l_infer --bop-csv, e.g. of a tracked "
+                   "video) instead of running the pipeline: matched to the instances as with "
+                   "--boxes det (the same figures); --checkpoint says which objects count");
     app.add_option("--detections", detections_path,
                    "BOP detection file (JSON array of {scene_id, image_id, category_id, bbox, score, "
                    "time}) for --boxes file");
@@ -288,6 +303,11 @@ int main(int argc, char** argv) {
                              "g2l_eval --help)\n");
         return g2l::cli::kUsageError;
     }
+    if (!poses_path.empty() && (boxes != "gt" || !detector_path.empty())) {
+        std::fprintf(stderr, "g2l_eval: --poses scores given poses: it takes no --boxes det / "
+                             "file and no --detector\n");
+        return g2l::cli::kUsageError;
+    }
     if ((boxes == "det") != !detector_path.empty() && !checkpoint.empty()) {
         std::fprintf(stderr, "g2l_eval: --boxes det needs --detector FILE, and --detector with "
                              "--checkpoint needs --boxes det\n");
@@ -374,6 +394,8 @@ int main(int argc, char** argv) {
         // Every input and output before the (long) evaluation.
         std::vector<g2l::data::Detection> detections;
         if (!detections_path.empty()) detections = g2l::data::load_bop_detections(detections_path);
+        std::vector<g2l::data::PoseRow> given;
+        if (!poses_path.empty()) given = g2l::data::load_bop_results_csv(poses_path);
         std::ofstream csv_out, inst_out;
         if (!bop_csv.empty()) {
             csv_out.open(bop_csv);
@@ -394,6 +416,25 @@ int main(int argc, char** argv) {
             std::filesystem::create_directories(vis_dir, ec);
             G2L_CHECK(!ec && std::filesystem::is_directory(vis_dir), "--vis '", vis_dir,
                       "': cannot create the folder: ", ec.message());
+        }
+        // --symmetric: a convention's name, object ids, or none.
+        std::optional<std::vector<int>> sym_ids;
+        if (symmetric == "none") {
+            sym_ids = std::vector<int>{};
+        } else if (!symmetric.empty() && std::isdigit(static_cast<unsigned char>(symmetric[0]))) {
+            std::vector<int> ids;
+            std::stringstream ss(symmetric);
+            std::string tok;
+            while (std::getline(ss, tok, ',')) {
+                char* end = nullptr;
+                const long v = std::strtol(tok.c_str(), &end, 10);
+                G2L_CHECK(!tok.empty() && *end == '\0' && v >= 1 && v < 1000000, "--symmetric '",
+                          symmetric, "': '", tok, "' is not an object id");
+                ids.push_back(int(v));
+            }
+            sym_ids = ids;
+        } else if (!symmetric.empty()) {
+            sym_ids = g2l::data::symmetric_convention(symmetric);
         }
         g2l::train::LoadedModel m = g2l::train::load_model(checkpoint);
         std::unique_ptr<g2l::nn::LoadedDetector> det;
@@ -417,15 +458,18 @@ int main(int argc, char** argv) {
             }
             g2l::data::BopOptions o;
             o.obj_ids = present;
+            o.symmetric_ids = sym_ids;
             sets_to_eval.emplace_back(root + "/" + split, g2l::data::open_bop(root, split, o));
             // The detector's figures count every instance at least 10% visible (the detector
             // evaluation's rule); GT boxes keep every instance unless told.
-            set_min_visib.push_back(app.count("--min-visib") || boxes != "det" ? min_visib : 0.1);
+            set_min_visib.push_back(app.count("--min-visib") || (boxes != "det" && poses_path.empty())
+                                        ? min_visib : 0.1);
         } else {
             const auto cfg = g2l::train::load_config(config, sets);
             for (const auto& s : cfg.data.val) {
                 if (s.type != "bop") continue;
                 g2l::data::BopOptions o;
+                o.symmetric_ids = sym_ids;
                 o.scenes = s.scenes;
                 o.obj_ids = s.objects.empty() ? ids : s.objects;
                 sets_to_eval.emplace_back(s.root + "/" + s.split, g2l::data::open_bop(s.root, s.split, o));
@@ -465,6 +509,7 @@ int main(int argc, char** argv) {
                                  sets_to_eval[i].first.c_str());
             }
             if (boxes == "file") eo.detections = &detections;
+            if (!poses_path.empty()) eo.poses = &given;
             const auto& ds = sets_to_eval[i].second;
             std::vector<g2l::data::Detection> det_boxes;
             if (boxes == "det") {  // the detector on every frame (what its input needs), timed
@@ -479,7 +524,8 @@ int main(int argc, char** argv) {
             const auto r = g2l::eval::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo,
                                                           &inst, &hyps);
             std::printf("## %s (%s boxes, %s crop)\n\n%s\n", sets_to_eval[i].first.c_str(),
-                        boxes == "gt"    ? "GT"
+                        !poses_path.empty() ? ("poses " + poses_path).c_str()
+                        : boxes == "gt"    ? "GT"
                         : boxes == "det" ? ("detector " + detector_path).c_str()
                                          : ("detection file " + detections_path).c_str(),
                         m.crop.c_str(), g2l::eval::report_markdown(r).c_str());

@@ -35,6 +35,7 @@ namespace {
 struct LoadedModel {
     int obj_id;
     std::unique_ptr<geom::Mesh> mesh;
+    std::string symmetries;  // declared in the models_info.json beside the mesh (data/scene.h)
 };
 
 // obj_id from a BOP-style file name ("obj_000012.ply" -> 12), or -1.
@@ -69,7 +70,10 @@ std::vector<LoadedModel> load_models(const std::vector<std::string>& args) {
     for (size_t i = 0; i < files.size(); ++i) {
         const int by_name = id_from_name(fs::path(files[i]).filename().string());
         const int id = by_name > 0 ? by_name : int(i) + 1;
-        out.push_back({id, std::make_unique<geom::Mesh>(geom::load_mesh(files[i]))});
+        // The symmetries the models_info.json beside the mesh declares travel with it.
+        const std::string info = (fs::path(files[i]).parent_path() / "models_info.json").string();
+        out.push_back({id, std::make_unique<geom::Mesh>(geom::load_mesh(files[i])),
+                       data::read_symmetries(info, id)});
     }
     return out;
 }
@@ -213,7 +217,7 @@ int main(int argc, char** argv) {
         if (seed_given) cfg.seed = seed;
         if (app.count("--objects") > 0) cfg.target_obj_ids = parse_ids(objects);
         std::vector<data::SceneModel> sm;
-        for (const LoadedModel& m : models) sm.push_back({m.obj_id, m.mesh.get()});
+        for (const LoadedModel& m : models) sm.push_back({m.obj_id, m.mesh.get(), m.symmetries});
         for (const int id : cfg.target_obj_ids) {  // name the option, not the scene generator
             bool known = false;
             std::string ids;

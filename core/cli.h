@@ -67,8 +67,9 @@ inline int parse(CLI::App& app, int argc, char** argv, const char* tool) {
     } catch (const CLI::ParseError& e) {
         std::string msg = e.what();
         // CLI11 checks required options before unknown ones: "--dpeth x" would be reported as
-        // "--depth is required". Name the misspelt option instead.
-        if (dynamic_cast<const CLI::RequiredError*>(&e)) {
+        // "--depth is required", or as "the following arguments were not expected: x --dpeth".
+        // Name the misspelt option instead.
+        if (dynamic_cast<const CLI::RequiredError*>(&e) || dynamic_cast<const CLI::ExtrasError*>(&e)) {
             for (int i = 1; i < argc; ++i) {
                 const std::string a = argv[i];
                 if (a.size() < 3 || a.compare(0, 2, "--") != 0) continue;

@@ -144,10 +144,10 @@ std::map<int, ObjectModel> read_models(const fs::path& root, const std::string& 
         G2L_CHECK(infos.count(id), "object id ", id,
                   " requested in BopOptions::obj_ids is not in '", info_path.string(), "'");
     }
-    bool known = false;
-    const std::vector<int> def_sym = default_symmetric_ids(name, &known);
-    const std::vector<int>& sym = opt.symmetric_ids ? *opt.symmetric_ids : def_sym;
-    const bool use_list = opt.symmetric_ids.has_value() || known;
+    // Symmetric objects: the models_info.json's symmetries_* entries, unless the caller names
+    // them (BopOptions::symmetric_ids); never guessed from the folder's name.
+    const bool use_list = opt.symmetric_ids.has_value();
+    const std::vector<int> sym = use_list ? *opt.symmetric_ids : std::vector<int>{};
 
     std::map<int, ObjectModel> models;
     for (const auto& [id, info] : infos) {

@@ -20,9 +20,9 @@ struct BopOptions {
     /// Keep only these object ids (models and instances); empty = all objects of models_info.
     /// With a filter, frames left without any instance are dropped.
     std::vector<int> obj_ids;
-    /// Objects evaluated with ADD-S. nullopt = the defaults of the dataset name (ycbv: 13, 16,
-    /// 19, 20, 21; lm/lmo: 10, 11); for an unknown name, the symmetries_* entries of
-    /// models_info.json. When set (also to {}), exactly these ids are symmetric.
+    /// Objects evaluated with ADD-S. nullopt = those whose models_info.json entry declares
+    /// symmetries_discrete / symmetries_continuous (whatever the folder is called); when set
+    /// (also to {}), exactly these ids (data::symmetric_convention gives the published lists).
     std::optional<std::vector<int>> symmetric_ids;
     /// Dataset name; "" = the root folder's name (e.g. "ycbv", "lmo").
     std::string dataset_name;

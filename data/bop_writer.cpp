@@ -9,6 +9,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/json.h"
 #include "geometry/mesh_io.h"
 #include "geometry/model_info.h"
 
@@ -130,6 +131,23 @@ void BopSceneWriter::flush() const {
     write_file_atomic((dir / "scene_gt_info.json").string(), assemble(info_));
 }
 
+std::string read_symmetries(const std::string& models_info_path, int obj_id) {
+    std::error_code ec;
+    if (!fs::is_regular_file(models_info_path, ec)) return "";
+    const json all = parse_json_file(models_info_path);
+    const std::string key = std::to_string(obj_id);
+    if (!all.is_object() || !all.contains(key) || !all.at(key).is_object()) return "";
+    json out = json::object();
+    for (const char* k : {"symmetries_discrete", "symmetries_continuous"}) {
+        if (!all.at(key).contains(k)) continue;
+        const json& v = all.at(key).at(k);
+        G2L_CHECK(v.is_array(), "'", models_info_path, "': '", key, ".", k,
+                  "' must be an array, got ", v.type_name());
+        if (!v.empty()) out[k] = v;
+    }
+    return out.empty() ? "" : out.dump();
+}
+
 void write_bop_models(const std::string& models_dir, const std::vector<SceneModel>& models) {
     std::error_code ec;
     fs::create_directories(models_dir, ec);
@@ -145,9 +163,13 @@ void write_bop_models(const std::string& models_dir, const std::vector<SceneMode
         fs::rename(tmp, path, ec);
         G2L_CHECK(!ec, "write_bop_models: cannot rename '", tmp, "': ", ec.message());
         const geom::ModelInfo mi = geom::compute_model_info(m.mesh->vertices);
-        const json j = {{"diameter", mi.diameter}, {"min_x", mi.min.x()}, {"min_y", mi.min.y()},
-                        {"min_z", mi.min.z()},     {"size_x", mi.size.x()}, {"size_y", mi.size.y()},
-                        {"size_z", mi.size.z()}};
+        json j = {{"diameter", mi.diameter}, {"min_x", mi.min.x()}, {"min_y", mi.min.y()},
+                  {"min_z", mi.min.z()},     {"size_x", mi.size.x()}, {"size_y", mi.size.y()},
+                  {"size_z", mi.size.z()}};
+        if (!m.symmetries.empty()) {  // carried, never guessed: the evaluation reads them back
+            const json sym = json::parse(m.symmetries);
+            for (auto it = sym.begin(); it != sym.end(); ++it) j[it.key()] = it.value();
+        }
         info[m.obj_id] = j.dump();
     }
     write_file_atomic((fs::path(models_dir) / "models_info.json").string(), assemble(info));

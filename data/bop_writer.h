@@ -41,10 +41,15 @@ private:
     std::map<int, std::string> gt_, camera_, info_;  ///< image id -> serialised JSON value
 };
 
+/// The symmetries_discrete / symmetries_continuous entries of object `obj_id` in a BOP
+/// models_info.json, as a JSON object's text ("" when the file or the entry is absent or
+/// declares none). Throws g2l::Error naming the file for invalid JSON or a non-array entry.
+std::string read_symmetries(const std::string& models_info_path, int obj_id);
+
 /// Writes each mesh as <models_dir>/obj_%06d.ply (geometry/mesh_io.h save_ply) and
-/// models_info.json (diameter, min_*, size_* from compute_model_info; "symmetries_discrete": []
-/// is not written, BOP readers treat absent symmetries as none). Throws g2l::Error for a null
-/// mesh or a write error.
+/// models_info.json (diameter, min_*, size_* from compute_model_info, and the model's declared
+/// symmetries, SceneModel::symmetries; none declared: none written, BOP readers treat absent
+/// symmetries as none). Throws g2l::Error for a null mesh or a write error.
 void write_bop_models(const std::string& models_dir, const std::vector<SceneModel>& models);
 
 }  // namespace g2l::data

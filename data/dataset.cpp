@@ -253,12 +253,12 @@ std::string family(const std::string& name) {
 }
 }  // namespace
 
-std::vector<int> default_symmetric_ids(const std::string& dataset_name, bool* known) {
-    const std::string f = family(dataset_name);
-    if (known) *known = true;
+std::vector<int> symmetric_convention(const std::string& convention) {
+    const std::string f = lower(convention);
     if (f == "ycbv") return {13, 16, 19, 20, 21};
     if (f == "lm" || f == "lmo" || f == "linemod") return {10, 11};
-    if (known) *known = false;
+    G2L_CHECK(false, "no symmetric-object convention '", convention,
+              "' (known: ycbv, lm, lmo, linemod; or give the object ids)");
     return {};
 }
 

@@ -134,11 +134,12 @@ private:
     std::shared_ptr<MeshCache> cache_;
 };
 
-/// Default ids of the objects evaluated with ADD-S for a known dataset name: ycbv -> {13, 16,
-/// 19, 20, 21}, lm / lmo / linemod -> {10, 11}. `known` (optional) is set to false, and {} is
-/// returned, for any other name. Names are matched case-insensitively; "ycbv_mini" or
-/// "ycbv-test" count as ycbv (the part before the first '_' or '-').
-std::vector<int> default_symmetric_ids(const std::string& dataset_name, bool* known = nullptr);
+/// The published symmetric-object conventions, for a dataset whose models_info.json does not
+/// declare its symmetries (the YCB-Video convention of PoseCNN and the paper's tables): "ycbv" ->
+/// {13, 16, 19, 20, 21}, "lm" / "lmo" / "linemod" -> {10, 11}, case-insensitive. Asked for by
+/// name (g2l_eval --symmetric ycbv), never taken from a folder's name. Throws g2l::Error naming
+/// the known conventions for any other name.
+std::vector<int> symmetric_convention(const std::string& convention);
 
 /// Conventional object names of a known dataset (LINEMOD: 1 "ape" ... 15 "phone"); "" when
 /// unknown. Used when the dataset ships no obj_names.json.

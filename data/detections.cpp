@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -69,6 +70,87 @@ std::vector<Detection> load_bop_detections(const std::string& path) {
     ss << f.rdbuf();
     G2L_CHECK(!f.bad(), "detections '", path, "': read error");
     return parse_bop_detections(ss.str(), path);
+}
+
+namespace {
+
+// The numbers of one CSV field ("1 0 0 0 1 0 0 0 1"), each finite; throws naming the line.
+std::vector<double> csv_numbers(const std::string& field, const std::string& what, int line,
+                                const char* name) {
+    std::vector<double> v;
+    const char* p = field.c_str();
+    while (true) {
+        while (*p == ' ' || *p == '\t' || *p == '\r') ++p;
+        if (!*p) break;
+        char* end = nullptr;
+        const double x = std::strtod(p, &end);
+        G2L_CHECK(end != p && std::isfinite(x), "results '", what, "' line ", line, ": ", name,
+                  " '", field, "' is not a list of finite numbers");
+        v.push_back(x);
+        p = end;
+    }
+    return v;
+}
+
+}  // namespace
+
+std::vector<PoseRow> parse_bop_results_csv(const std::string& text, const std::string& what) {
+    std::istringstream in(text);
+    std::string line;
+    std::vector<PoseRow> rows;
+    int n = 0;
+    while (std::getline(in, line)) {
+        ++n;
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        if (n == 1) {
+            G2L_CHECK(line == "scene_id,im_id,obj_id,score,R,t,time", "results '", what,
+                      "': the first line must be the BOP header 'scene_id,im_id,obj_id,score,R,"
+                      "t,time', got '", line, "'");
+            continue;
+        }
+        if (line.empty()) continue;
+        std::vector<std::string> f;
+        size_t start = 0;
+        for (size_t k = 0; k <= line.size(); ++k)
+            if (k == line.size() || line[k] == ',') f.push_back(line.substr(start, k - start)), start = k + 1;
+        G2L_CHECK(f.size() == 7, "results '", what, "' line ", n, ": expected 7 comma-separated "
+                  "fields (scene_id,im_id,obj_id,score,R,t,time), got ", f.size());
+        const char* names[] = {"scene_id", "im_id", "obj_id"};
+        int ids[3];
+        for (int k = 0; k < 3; ++k) {
+            const std::vector<double> v = csv_numbers(f[size_t(k)], what, n, names[k]);
+            G2L_CHECK(v.size() == 1 && v[0] == std::floor(v[0]) && v[0] >= (k == 2 ? 1 : 0) &&
+                          v[0] < 2e9,
+                      "results '", what, "' line ", n, ": ", names[k], " '", f[size_t(k)],
+                      "' is not an integer >= ", k == 2 ? 1 : 0);
+            ids[k] = int(v[0]);
+        }
+        PoseRow r;
+        r.scene_id = ids[0], r.image_id = ids[1], r.obj_id = ids[2];
+        const std::vector<double> score = csv_numbers(f[3], what, n, "score");
+        const std::vector<double> R = csv_numbers(f[4], what, n, "R");
+        const std::vector<double> t = csv_numbers(f[5], what, n, "t");
+        const std::vector<double> time = csv_numbers(f[6], what, n, "time");
+        G2L_CHECK(score.size() == 1 && time.size() == 1, "results '", what, "' line ", n,
+                  ": score and time must be one number each");
+        G2L_CHECK(R.size() == 9 && t.size() == 3, "results '", what, "' line ", n, ": R needs 9 "
+                  "numbers and t 3, got ", R.size(), " and ", t.size());
+        r.score = score[0], r.time = time[0];
+        for (int k = 0; k < 9; ++k) r.R[size_t(k)] = R[size_t(k)];
+        for (int k = 0; k < 3; ++k) r.t[size_t(k)] = t[size_t(k)];
+        rows.push_back(r);
+    }
+    G2L_CHECK(n >= 1, "results '", what, "' is empty (no BOP header line)");
+    return rows;
+}
+
+std::vector<PoseRow> load_bop_results_csv(const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    G2L_CHECK(f.good(), "results '", path, "': cannot open the file");
+    std::ostringstream ss;
+    ss << f.rdbuf();
+    G2L_CHECK(!f.bad(), "results '", path, "': read error");
+    return parse_bop_results_csv(ss.str(), path);
 }
 
 }  // namespace g2l::data

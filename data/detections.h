@@ -5,6 +5,7 @@
 // `category_id`; scene_id / image_id / score / time are optional (-1 / -1 / 1 / -1).
 #pragma once
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -30,5 +31,23 @@ std::vector<Detection> load_bop_detections(const std::string& path);
 
 /// The same for JSON text already in memory; `what` names it in errors.
 std::vector<Detection> parse_bop_detections(const std::string& json_text, const std::string& what);
+
+/// One row of a BOP Challenge results CSV (scene_id,im_id,obj_id,score,R,t,time): a pose
+/// estimate, model -> camera, R row-major, t in mm.
+struct PoseRow {
+    int scene_id = 0, image_id = 0, obj_id = 0;
+    double score = 1;
+    std::array<double, 9> R{};
+    std::array<double, 3> t{};
+    double time = -1;  ///< seconds for the image (-1 in the file: unknown)
+};
+
+/// Parses a BOP results CSV (the header line "scene_id,im_id,obj_id,score,R,t,time", then one
+/// estimate per line; R: 9 numbers, t: 3, separated by spaces). Throws g2l::Error naming the
+/// file and line for a missing file, another header, a line without 7 fields, ids that are not
+/// integers >= 0 (obj_id >= 1), a number that is not finite, or R / t with the wrong count.
+std::vector<PoseRow> load_bop_results_csv(const std::string& path);
+/// The same for text in memory; `what` names it in errors.
+std::vector<PoseRow> parse_bop_results_csv(const std::string& text, const std::string& what);
 
 }  // namespace g2l::data

@@ -186,7 +186,7 @@ LinemodDataset open_linemod_preprocessed(const std::string& root_str, const Line
     const std::string info_path = (models_dir / "models_info.yml").string();
     const std::map<int, geom::ModelInfo> infos = geom::load_models_info_yml(info_path);
     const std::vector<int> sym =
-        opt.symmetric_ids ? *opt.symmetric_ids : default_symmetric_ids("linemod");
+        opt.symmetric_ids ? *opt.symmetric_ids : symmetric_convention("linemod");
     std::map<int, ObjectModel> models;
     for (int id : used) {
         const auto it = infos.find(id);

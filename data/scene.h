@@ -121,6 +121,10 @@ std::string scene_config_to_json(const SceneConfig& cfg);
 struct SceneModel {
     int obj_id = 0;
     const geom::Mesh* mesh = nullptr;
+    /// The object's symmetries as BOP declares them: a JSON object holding its input
+    /// models_info.json's "symmetries_discrete" / "symmetries_continuous" entries (read_symmetries),
+    /// copied into the models_info.json written beside the renders; "" = none declared.
+    std::string symmetries;
 };
 
 /// Ground truth of one annotated instance, with BOP scene_gt / scene_gt_info semantics.

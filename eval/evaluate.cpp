@@ -126,6 +126,51 @@ void set_reported(const infer::Hypothesis& hy, InstanceResult* r) {
 
 }  // namespace
 
+namespace {
+
+// A frame's given poses (EvalOptions::poses) as accepted hypotheses, best score first; each
+// box the projection of its posed model box, clipped to the image.
+void given_poses(const std::vector<const data::PoseRow*>& rows, const data::Dataset& ds,
+                 const geom::Intrinsics& K, std::vector<infer::Hypothesis>* out) {
+    out->clear();
+    for (const data::PoseRow* r : rows) {
+        infer::Hypothesis h;
+        h.cand.obj_id = h.cand.det_obj_id = r->obj_id;
+        h.cand.det_score = h.score = r->score;
+        h.verdict = infer::Verdict::accepted;
+        infer::PoseOutcome& o = h.outcome;
+        o.obj_id = r->obj_id;
+        o.status = infer::PoseStatus::ok;
+        for (int a = 0; a < 3; ++a) {
+            for (int b = 0; b < 3; ++b) o.pose.R(a, b) = r->R[size_t(a * 3 + b)];
+            o.pose.t[a] = r->t[size_t(a)];
+        }
+        const geom::ModelInfo& mi = ds.model(r->obj_id).info;
+        double u0 = 1e30, v0 = 1e30, u1 = -1e30, v1 = -1e30;
+        for (int k = 0; k < 8; ++k) {
+            const Eigen::Vector3d c = mi.min + Eigen::Vector3d(k & 1 ? mi.size.x() : 0,
+                                                               k & 2 ? mi.size.y() : 0,
+                                                               k & 4 ? mi.size.z() : 0);
+            const Eigen::Vector3d p = o.pose.R * c + o.pose.t;
+            if (p.z() <= 1.0) continue;
+            const double u = K.fx * p.x() / p.z() + K.cx, v = K.fy * p.y() / p.z() + K.cy;
+            u0 = std::min(u0, u), u1 = std::max(u1, u), v0 = std::min(v0, v), v1 = std::max(v1, v);
+        }
+        if (u1 >= u0 && v1 >= v0 && u0 > -1e6 && v0 > -1e6 && u1 < 1e6 && v1 < 1e6)
+            o.box = geom::clip_box({int(std::floor(u0)), int(std::floor(v0)),
+                                    int(std::ceil(u1 - std::floor(u0))),
+                                    int(std::ceil(v1 - std::floor(v0)))},
+                                   K.width, K.height);
+        out->push_back(std::move(h));
+    }
+    std::stable_sort(out->begin(), out->end(), [](const infer::Hypothesis& a,
+                                                  const infer::Hypothesis& b) {
+        return a.score > b.score;
+    });
+}
+
+}  // namespace
+
 EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
                              const std::map<int, int>& class_of,
                              const std::vector<std::vector<Eigen::Vector3f>>& keypoints,
@@ -154,6 +199,11 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
             frame_dets[{d.scene_id, d.image_id}].push_back(c);
         }
     }
+    std::map<std::pair<int, int>, std::vector<const data::PoseRow*>> frame_poses;
+    if (opt.poses)
+        for (const data::PoseRow& r : *opt.poses)
+            if (class_of.count(r.obj_id)) frame_poses[{r.scene_id, r.image_id}].push_back(&r);
+    const bool matched_road = opt.detections || opt.poses;
     if (hyps_out) hyps_out->clear();
     // The frame pipeline the inference library runs (infer/frame_pipeline.h): the same crop,
     // networks and refinement; evaluation adds only the ground truth and the oracle inputs.
@@ -205,13 +255,13 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
     };
     // The hypotheses road may pose any object of the model the dataset has a mesh of (a peak is
     // also tried as the objects of a like shape).
-    if (opt.detections)
+    if (matched_road)
         for (const auto& [id, om] : ds.models())
             if (class_of.count(id)) prepare(id), (void)om;
     std::vector<infer::Hypothesis> hyps;
     for (const data::Frame& f : ds.frames()) {
         if (opt.max_instances > 0 && rep.instances >= opt.max_instances) break;
-        if (opt.detections) {  // the library's road, matched to the ground truth afterwards
+        if (matched_road) {  // the library's road (or given poses), matched to the ground truth
             int scene_id = -1;
             try {
                 scene_id = std::stoi(f.scene);
@@ -242,7 +292,10 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
             const std::vector<infer::Candidate> cands =
                 fd == frame_dets.end() ? std::vector<infer::Candidate>{}
                                        : pipe.candidates(fd->second, opt.hypotheses);
-            pipe.hypotheses(depth.data(), K, cands, opt.hypotheses, &hyps);
+            if (opt.poses)
+                given_poses(frame_poses[{scene_id, f.image_id}], ds, K, &hyps);
+            else
+                pipe.hypotheses(depth.data(), K, cands, opt.hypotheses, &hyps);
             for (const infer::Hypothesis& hy : hyps) {
                 const infer::PoseOutcome& o = hy.outcome;
                 t_crop += o.ms_crop, t_seg += o.ms_seg, t_t += o.ms_t, t_rot += o.ms_rot;
@@ -315,7 +368,7 @@ EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                 r.det_iou = 0;
                 r.box = geom::clip_box(inst.box(), w, h);
                 if (est_of[g] < 0) {
-                    r.status = cands.empty() ? "no detection" : "no pose";
+                    r.status = opt.poses ? "no estimate" : cands.empty() ? "no detection" : "no pose";
                     results.push_back(r);
                     continue;
                 }
@@ -638,8 +691,11 @@ std::string report_markdown(const EvalReport& r) {
               : std::string("ICP onto the mesh from the pose and its near-symmetric turns, the "
                             "best depth fit wins")) +
          ".\n\n";
+    // Each column says how a missed instance counts: as a wrong pose (the accuracies, the AUCs at
+    // an infinite distance, the median at 180 deg) or not at all (the means over found poses).
     s += "| object | n | miss | ADD(-S) acc 0.1d (%) | ADD-S acc 0.1d (%) | ADD-sym acc 0.1d (%) | "
-                    "rot err sym median (deg) | ADD-S AUC | ADD AUC | rot err (deg) | trans err (mm) | trans err median (mm) | seg IoU |\n"
+                    "rot err sym median (deg; miss = 180) | ADD-S AUC | ADD AUC | rot err (deg; found) | "
+                    "trans err (mm; found) | trans err median (mm; found) | seg IoU |\n"
                     "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     char line[512];
     auto row = [&](const ObjectScores& o, const std::string& name) {
@@ -666,6 +722,9 @@ std::string report_markdown(const EvalReport& r) {
     for (const auto& o : r.objects)
         row(o, std::to_string(o.obj_id) + " " + o.name + (o.symmetric ? " (sym)" : ""));
     row(r.average, "**average**");
+    s += "\nA missed instance (no pose) counts as a wrong pose in the accuracies, at an infinite "
+         "distance in the AUCs and at 180 deg in the median rotation error; the columns marked "
+         "\"found\" are over the poses found.\n";
     if (r.average.det_recall_50 >= 0) {  // detector boxes: what the detector found
         s += "\nDetection recall (the box of the pose matched to the instance at IoU >= 0.5 "
              "with the visible GT box; the pose itself is judged above by its error):";

@@ -36,6 +36,11 @@ struct EvalOptions {
     /// nearest remaining estimate of its object within a diameter (a wrong pose), else it is a
     /// miss; an estimate left over is a false positive. Null = GT boxes.
     const std::vector<data::Detection>* detections = nullptr;
+    /// Poses estimated elsewhere (a BOP results CSV: g2l_infer --bop-csv, a tracker's, another
+    /// method's) instead of the pipeline's: each frame's rows are its reported poses, by score,
+    /// matched to the ground-truth instances as `detections`' poses are (each pose's box: its
+    /// posed model box's projection). Rows of objects the model does not know are ignored.
+    const std::vector<data::PoseRow>* poses = nullptr;
     /// The hypotheses road's settings (with detections).
     infer::HypothesisOptions hypotheses;
     /// Oracle inputs, to tell which stage an error comes from (the rest runs as usual):

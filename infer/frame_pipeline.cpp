@@ -358,7 +358,7 @@ geom::Verification FramePipeline::verify(const float* depth, const geom::Intrins
 
 void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
                                const std::vector<Candidate>& cands, const HypothesisOptions& opt,
-                               std::vector<Hypothesis>* out) {
+                               std::vector<Hypothesis>* out, const std::vector<Hypothesis>* seeds) {
     G2L_CHECK(opt.min_score >= 0 && opt.duplicate_frac >= 0 && opt.overlap_frac > 0,
               "FramePipeline::hypotheses: options out of range (min_score ", opt.min_score,
               ", duplicate_frac ", opt.duplicate_frac, ", overlap_frac ", opt.overlap_frac, ")");
@@ -368,12 +368,18 @@ void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
     const int fc = opt.verify.footprint_cell_px;
     const int fw = (K.width + fc - 1) / fc;
     const double cover = std::max(opt.cover_score, opt.min_score);
-    std::vector<Hypothesis> hs(cands.size());
+    const size_t ns = seeds ? seeds->size() : 0;
+    std::vector<Hypothesis> hs(ns + cands.size());
+    for (size_t i = 0; i < ns; ++i) {  // posed already: only their verdicts are decided here
+        hs[i] = (*seeds)[i];
+        hs[i].verdict = Verdict::no_pose;
+        hs[i].rival = -1;
+    }
     std::vector<PoseRequest> req(1);
     std::vector<PoseOutcome> outs;
-    for (size_t i = 0; i < cands.size(); ++i) {
+    for (size_t i = ns; i < hs.size(); ++i) {
         Hypothesis& h = hs[i];
-        h.cand = cands[i];
+        h.cand = cands[i - ns];
         h.score = h.cand.det_score;
         if (cover <= 1.0) {
             const double px = h.cand.peak_x >= 0 ? h.cand.peak_x : h.cand.box.x + 0.5 * h.cand.box.w;
@@ -393,7 +399,7 @@ void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
                 };
                 for (size_t k = 0; k < i; ++k) {
                     const Hypothesis& w = hs[k];
-                    if (w.verified && w.score >= cover && claims(w.check.footprint)) {
+                    if (w.verified && !w.fill_in && w.score >= cover && claims(w.check.footprint)) {
                         h.verdict = Verdict::covered;
                         h.rival = int(k);
                         break;
@@ -433,6 +439,7 @@ void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
         const bool oa = hs[a].outcome.ok() && hs[a].verdict != Verdict::covered;
         const bool ob = hs[b].outcome.ok() && hs[b].verdict != Verdict::covered;
         if (oa != ob) return oa;
+        if (hs[a].fill_in != hs[b].fill_in) return hs[b].fill_in;
         return hs[a].score > hs[b].score;
     });
     std::vector<size_t> kept;
@@ -471,6 +478,7 @@ void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
     std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
         const bool ka = hs[a].accepted(), kb = hs[b].accepted();
         if (ka != kb) return ka;
+        if (ka && hs[a].fill_in != hs[b].fill_in) return hs[a].score > hs[b].score;
         return false;  // keep the score order of step 3
     });
     std::vector<int> new_index(hs.size());
@@ -481,6 +489,154 @@ void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
         out->push_back(std::move(hs[i]));
         if (out->back().rival >= 0) out->back().rival = new_index[size_t(out->back().rival)];
     }
+}
+
+namespace {
+
+// FramePipeline::follow's object points: the depth pixels of `box` under the model's
+// silhouette at `prev` (its surface points projected, each widened to cover the gaps between
+// them) that lie within `gate` mm of the posed surface. The silhouette keeps the table around a
+// standing object and the neighbours out, as the segmentation network does on a detection's crop.
+std::vector<Eigen::Vector3f> points_near_pose(const float* depth, const geom::Intrinsics& K,
+                                              const PreparedMesh* m, const geom::Pose& prev,
+                                              const geom::Box2i& box, double gate) {
+    const geom::Points& tree_pts = m->tree->points();
+    const int bw = box.w, bh = box.h;
+    std::vector<uint8_t> sil(size_t(bw) * size_t(bh), 0);
+    const int64_t n_tree = tree_pts.rows();
+    const int64_t stride = std::max<int64_t>(1, n_tree / 6000);
+    // The tree samples the surface every ~2 mm (ModelKdTree::from_mesh); every stride-th one
+    // lies ~2 sqrt(stride) mm from the next: each marks the pixels within that distance.
+    const double spacing = 2.0 * std::sqrt(double(stride));
+    for (int64_t i = 0; i < n_tree; i += stride) {
+        const Eigen::Vector3d p = prev.R * tree_pts.row(i).transpose().cast<double>() + prev.t;
+        if (p.z() <= 1.0) continue;
+        const double u = K.fx * p.x() / p.z() + K.cx, v = K.fy * p.y() / p.z() + K.cy;
+        const int rad = std::min(8, int(std::ceil(K.fx * spacing / p.z())));
+        const int ui = int(std::floor(u)) - box.x, vi = int(std::floor(v)) - box.y;
+        for (int y = std::max(0, vi - rad); y <= std::min(bh - 1, vi + rad); ++y)
+            for (int x = std::max(0, ui - rad); x <= std::min(bw - 1, ui + rad); ++x)
+                sil[size_t(y) * size_t(bw) + size_t(x)] = 1;
+    }
+    const Eigen::Matrix3f Rt = prev.R.transpose().cast<float>();
+    const Eigen::Vector3f tf = prev.t.cast<float>();
+    const float g2 = float(gate * gate);
+    const bool use_grid = !m->grid.empty() && gate <= m->grid.margin_mm();
+    // The ICP and the verification use a few hundred points: a pixel stride keeps ~4000 of the
+    // silhouette's (a near object covers ~50000 pixels).
+    int64_t n_sil = 0;
+    for (const uint8_t v : sil) n_sil += v;
+    const int step = std::max(1, int(std::sqrt(double(n_sil) / 4000.0)));
+    std::vector<Eigen::Vector3f> keep;
+    for (int y = 0; y < bh; y += step)
+        for (int x = 0; x < bw; x += step) {
+            if (!sil[size_t(y) * size_t(bw) + size_t(x)]) continue;
+            const int px = box.x + x, py = box.y + y;
+            const float z = depth[size_t(py) * size_t(K.width) + size_t(px)];
+            if (!(z > 0.f) || !std::isfinite(z)) continue;
+            const Eigen::Vector3f p(float((px - K.cx) * z / K.fx), float((py - K.cy) * z / K.fy), z);
+            const Eigen::Vector3f xm = Rt * (p - tf);
+            float dist2;
+            if (use_grid) {
+                const int row = m->grid.lookup(xm);
+                if (row < 0) continue;
+                dist2 = (xm - tree_pts.row(row).transpose()).squaredNorm();
+            } else {
+                const float dn = m->tree->nearest(xm);
+                dist2 = dn * dn;
+            }
+            if (dist2 <= g2) keep.push_back(p);
+        }
+    return keep;
+}
+
+}  // namespace
+
+Hypothesis FramePipeline::follow(const float* depth, const geom::Intrinsics& K,
+                                 const Hypothesis& last, const HypothesisOptions& opt,
+                                 const TrackOptions& topt) const {
+    const int obj = last.cand.obj_id;
+    const PreparedMesh* m = mesh(obj);
+    G2L_CHECK(m && opt_.refine != Refine::none, "FramePipeline::follow: object ", obj,
+              m ? ": the pipeline does not refine (tracking needs the refinement)"
+                : " has no mesh (tracking needs it)");
+    G2L_CHECK(depth != nullptr && K.width > 0 && K.height > 0,
+              "FramePipeline::follow: need a depth image and its size, got ", K.width, " x ",
+              K.height);
+    G2L_CHECK(topt.search_frac >= 0 && topt.gate_frac >= 0 && topt.gate_min_mm >= 0 &&
+                  topt.iterations >= 1 && topt.max_points >= 3,
+              "FramePipeline::follow: track options out of range");
+    const auto t0 = Clock::now();
+    Hypothesis h;
+    h.cand = last.cand;
+    h.tracked = true;
+    h.track_id = last.track_id;
+    h.score = 0;
+    PoseOutcome& o = h.outcome;
+    o.obj_id = obj;
+    const geom::Pose& prev = last.outcome.pose;
+    const double d = m->info.diameter;
+    // 1. The sphere the object can have moved within, and its image box (the projection of
+    //    the sphere's bounding cube; the whole image when the camera is inside it).
+    const Eigen::Vector3d c = prev.R * (m->info.min + 0.5 * m->info.size) + prev.t;
+    const double r = (0.5 + topt.search_frac) * d;  // the box's margin for the motion
+    int x0 = 0, y0 = 0, x1 = K.width, y1 = K.height;
+    if (c.z() - r > 1.0) {
+        double u0 = 1e30, v0 = 1e30, u1 = -1e30, v1 = -1e30;
+        for (int k = 0; k < 8; ++k) {
+            const Eigen::Vector3d q = c + r * Eigen::Vector3d(k & 1 ? 1 : -1, k & 2 ? 1 : -1,
+                                                              k & 4 ? 1 : -1);
+            const double u = K.fx * q.x() / q.z() + K.cx, v = K.fy * q.y() / q.z() + K.cy;
+            u0 = std::min(u0, u), u1 = std::max(u1, u), v0 = std::min(v0, v), v1 = std::max(v1, v);
+        }
+        x0 = int(std::floor(std::max(-1.0, u0))), x1 = int(std::ceil(std::min(1e6, u1)));
+        y0 = int(std::floor(std::max(-1.0, v0))), y1 = int(std::ceil(std::min(1e6, v1)));
+    }
+    o.box = geom::clip_box({x0, y0, x1 - x0, y1 - y0}, K.width, K.height);
+    if (o.box.empty()) {
+        o.status = PoseStatus::box_outside_image;
+        o.ms_crop = ms_since(t0);
+        return h;
+    }
+    // 2. The object's points: under the last pose's silhouette, near its surface.
+    const double gate = std::max(topt.gate_min_mm, topt.gate_frac * d);
+    const std::vector<Eigen::Vector3f> keep = points_near_pose(depth, K, m, prev, o.box, gate);
+    o.num_crop_points = int(keep.size());
+    o.crop.resize(int64_t(keep.size()), 3);
+    for (size_t i = 0; i < keep.size(); ++i) o.crop.row(int64_t(i)) = keep[i].transpose();
+    o.object_rows.resize(keep.size());
+    for (size_t i = 0; i < keep.size(); ++i) o.object_rows[i] = int(i);
+    o.num_object_points = int(keep.size());
+    o.ms_crop = ms_since(t0);
+    if (keep.size() < 10) {
+        o.status = PoseStatus::too_few_object_points;
+        return h;
+    }
+    // 3. A short ICP from the last pose: no turned starts, no clusters (the last pose was
+    //    verified; the turns exist to undo a network's flips).
+    const auto t1 = Clock::now();
+    geom::RefineOptions ro;
+    ro.hypotheses = false;
+    ro.cluster_frac = 0;
+    ro.support_plane = false;
+    ro.coarse_iterations = 0;  // one start: no ranking pass
+    ro.iterations = topt.iterations;
+    ro.max_points = topt.max_points;
+    ro.polish_iterations = 0;  // the grid's pairs lie within a cell of the exact ones
+    const geom::DepthImage di{depth, K};
+    const geom::RefineResult rr = geom::refine_pose(*m->tree, m->info, o.crop, prev, ro, &di,
+                                                    &m->normals, m->grid.empty() ? nullptr : &m->grid);
+    o.status = PoseStatus::ok;
+    o.pose = rr.pose;
+    o.fit_mm = rr.fit_mm;
+    o.refined = true;
+    // 4. Verified and scored like a detection's pose.
+    h.check = verify(depth, K, o, opt.verify);
+    h.verified = true;
+    h.score = opt.score_model.probability(h.check, h.cand.det_score,
+                                          h.cand.det_obj_id != h.cand.obj_id);
+    o.ms_refine = ms_since(t1);
+    return h;
 }
 
 }  // namespace g2l::infer

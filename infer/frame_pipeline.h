@@ -204,7 +204,31 @@ struct Hypothesis {
     double score = 0;
     Verdict verdict = Verdict::no_pose;
     int rival = -1;               ///< duplicate / overlap: the index of the pose that won
+    /// Posed by following the previous frame's pose (FramePipeline::follow), not from a
+    /// detection of this frame.
+    bool tracked = false;
+    int track_id = -1;            ///< the instance's id across frames (infer::Tracker); -1: none
+    /// A seed decided after every other hypothesis of the frame (a followed pose on a frame the
+    /// detector saw: it only fills in an instance the fresh poses left out) and never covering.
+    bool fill_in = false;
     bool accepted() const { return verdict == Verdict::accepted; }
+};
+
+/// How a pose of the previous frame is followed into the next one (tracking, spec §17): at
+/// video rate an object moves a few millimetres or degrees between frames, so a short ICP from
+/// the last pose on the depth points near the posed surface replaces the detector, the crop and
+/// the networks (~1 ms instead of ~25 per object).
+struct TrackOptions {
+    /// Depth points are searched in the sphere around the last pose's model-box centre of radius
+    /// (0.5 + search_frac) x diameter: the object's motion between frames.
+    double search_frac = 0.25;
+    /// Of those, the points within max(gate_min_mm, gate_frac x diameter) of the surface posed
+    /// at the last pose are taken as the object's: the segmentation network's job, done by the
+    /// last pose (a wider gate takes in the table and the neighbours).
+    double gate_frac = 0.06;
+    double gate_min_mm = 10.0;
+    int iterations = 10;   ///< ICP steps from the last pose (no turned starts)
+    int max_points = 500;  ///< object points the ICP uses (evenly strided)
 };
 
 class FramePipeline {
@@ -249,9 +273,21 @@ public:
     /// HypothesisOptions::cover_score), verified against the depth (objects with a mesh), then
     /// ranked by score with duplicates and overlaps suppressed. *out: one Hypothesis per
     /// candidate, accepted ones first by score, then the rejected ones by score. Deterministic.
+    /// `seeds` (optional): hypotheses posed already (tracked poses, FramePipeline::follow) that
+    /// enter ahead of the candidates: they take part in the covered test and the selection like
+    /// the candidates' poses.
     void hypotheses(const float* depth_mm, const geom::Intrinsics& K,
                     const std::vector<Candidate>& candidates, const HypothesisOptions& opt,
-                    std::vector<Hypothesis>* out);
+                    std::vector<Hypothesis>* out, const std::vector<Hypothesis>* seeds = nullptr);
+    /// Follows `last` (an accepted pose of the previous frame, of an object with a mesh) into
+    /// this frame: the depth points near its posed surface, ICP from its pose, verified and
+    /// scored as a hypothesis (tracked = true, its candidate and track id kept). Its box is the
+    /// image box of the searched sphere; status box_outside_image when that leaves the image,
+    /// too_few_object_points when fewer than 10 points lie near the surface (the object left or
+    /// moved too far). Throws g2l::Error when the object has no mesh or the pipeline does not
+    /// refine (Refine::none).
+    Hypothesis follow(const float* depth_mm, const geom::Intrinsics& K, const Hypothesis& last,
+                      const HypothesisOptions& opt, const TrackOptions& topt) const;
     /// Verifies one posed outcome (status ok, object with a mesh) against the depth.
     geom::Verification verify(const float* depth_mm, const geom::Intrinsics& K,
                               const PoseOutcome& o, const geom::VerifyOptions& opt) const;

@@ -15,6 +15,7 @@
 #include "geometry/mesh_io.h"
 #include "geometry/model_info.h"
 #include "infer/frame_pipeline.h"
+#include "infer/tracker.h"
 #include "nn/models/detector.h"
 #include "nn/models/g2l_io.h"
 
@@ -65,6 +66,13 @@ struct PoseEstimator::Impl {
     std::vector<infer::Hypothesis> hyps;
     // Under the mutex: the threads, the frame's depth in mm and its intrinsics.
     const float* begin_frame(const FrameView& f, geom::Intrinsics* K);
+    // detect() under the mutex.
+    std::vector<ObjectBox> detect(const FrameView& f);
+    // A frame's detections as the hypotheses road's candidates.
+    std::vector<infer::Candidate> detections(const std::vector<ObjectBox>& boxes,
+                                             const infer::HypothesisOptions& ho);
+    // The road's hypotheses as the public poses (keep_rejected: the rejected ones too).
+    std::vector<ObjectPose> to_public(const std::vector<infer::Hypothesis>& hs) const;
     infer::HypothesisOptions hypothesis_options() const {
         infer::HypothesisOptions h;
         h.max_per_object = options.max_instances;
@@ -306,7 +314,12 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
 }
 
 std::vector<ObjectBox> PoseEstimator::detect(const FrameView& f) {
-    Impl& m = *impl_;
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    return impl_->detect(f);
+}
+
+std::vector<ObjectBox> PoseEstimator::Impl::detect(const FrameView& f) {
+    Impl& m = *this;
     G2L_CHECK(m.detector, "PoseEstimator::detect: no detector (set EstimatorOptions::detector to "
                           "a detector export)");
     const nn::DetectorInput input = m.detector->input();
@@ -326,7 +339,6 @@ std::vector<ObjectBox> PoseEstimator::detect(const FrameView& f) {
         df.depth_mm = depth_in_mm(f, depth);
         df.fx = f.K.fx, df.fy = f.K.fy, df.cx = f.K.cx, df.cy = f.K.cy;
     }
-    std::lock_guard<std::mutex> lock(m.mutex);
     if (m.options.threads > 0) set_num_threads(m.options.threads);
     const auto dets = nn::detect(*m.detector->net, m.detector->downscale, df,
                                  float(m.options.min_detection_score), m.options.max_instances,
@@ -348,13 +360,8 @@ std::string PoseEstimator::detector_input() const {
     return impl_->detector ? nn::to_string(impl_->detector->input()) : "";
 }
 
-std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f) {
-    const std::vector<ObjectBox> boxes = detect(f);  // checks the frame for the detector
-    check_frame(f, "PoseEstimator::estimate");
-    Impl& m = *impl_;
-    std::lock_guard<std::mutex> lock(m.mutex);
-    geom::Intrinsics K;
-    const float* depth = m.begin_frame(f, &K);
+std::vector<infer::Candidate> PoseEstimator::Impl::detections(const std::vector<ObjectBox>& boxes,
+                                                             const infer::HypothesisOptions& ho) {
     std::vector<infer::Candidate> dets;
     for (const ObjectBox& b : boxes) {
         infer::Candidate c;
@@ -364,16 +371,20 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f) {
         c.det_score = b.score;
         dets.push_back(c);
     }
-    const infer::HypothesisOptions ho = m.hypothesis_options();
-    m.pipeline->hypotheses(depth, K, m.pipeline->candidates(dets, ho), ho, &m.hyps);
+    return pipeline->candidates(dets, ho);
+}
+
+std::vector<ObjectPose> PoseEstimator::Impl::to_public(const std::vector<infer::Hypothesis>& hs) const {
     std::vector<ObjectPose> out;
-    for (const infer::Hypothesis& h : m.hyps) {
-        if (!h.accepted() && !m.options.keep_rejected) continue;
+    for (const infer::Hypothesis& h : hs) {
+        if (!h.accepted() && !options.keep_rejected) continue;
         if (h.verdict == infer::Verdict::covered) continue;  // never posed: no pose to return
-        ObjectPose p = to_public(h.outcome);
+        ObjectPose p = g2l::to_public(h.outcome);
         p.score = p.detection_score = h.cand.det_score;
         if (h.verified) set_check(h.check, h.score, &p);
         p.rival = h.rival;
+        p.tracked = h.tracked;
+        p.track_id = h.track_id;
         switch (h.verdict) {
             case infer::Verdict::low_score: p.status = PoseStatus::rejected_low_score; break;
             case infer::Verdict::duplicate: p.status = PoseStatus::rejected_duplicate; break;
@@ -386,5 +397,65 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f) {
     }
     return out;
 }
+
+std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f) {
+    Impl& m = *impl_;
+    std::lock_guard<std::mutex> lock(m.mutex);
+    const std::vector<ObjectBox> boxes = m.detect(f);  // checks the frame for the detector
+    check_frame(f, "PoseEstimator::estimate");
+    geom::Intrinsics K;
+    const float* depth = m.begin_frame(f, &K);
+    const infer::HypothesisOptions ho = m.hypothesis_options();
+    m.pipeline->hypotheses(depth, K, m.detections(boxes, ho), ho, &m.hyps);
+    return m.to_public(m.hyps);
+}
+
+struct PoseTracker::Impl {
+    PoseEstimator* est = nullptr;
+    std::unique_ptr<infer::Tracker> tracker;
+};
+
+PoseTracker::PoseTracker(PoseEstimator& est, const TrackerOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+    PoseEstimator::Impl& m = *est.impl_;
+    G2L_CHECK(m.detector, "PoseTracker: the estimator has no detector (EstimatorOptions::"
+                          "detector): tracking finds the objects with it");
+    G2L_CHECK(m.options.refine != Refinement::none,
+              "PoseTracker: the estimator does not refine (EstimatorOptions::meshes and a "
+              "refinement other than none): tracking follows the poses against the meshes");
+    infer::TrackerOptions to;
+    to.redetect_every = options.redetect_every;
+    to.redetect_weak_every = options.redetect_weak_every;
+    to.min_track_score = options.min_track_score;
+    to.lost_score = options.lost_score;
+    G2L_CHECK(std::isfinite(to.min_track_score), "PoseTracker: min_track_score must be in "
+                                                  "[0, 1], got ", to.min_track_score);
+    G2L_CHECK(std::isfinite(to.lost_score), "PoseTracker: lost_score must be in [0, "
+                                             "min_track_score], got ", to.lost_score);
+    impl_->est = &est;
+    impl_->tracker = std::make_unique<infer::Tracker>(*m.pipeline, to);
+}
+
+PoseTracker::~PoseTracker() = default;
+PoseTracker::PoseTracker(PoseTracker&&) noexcept = default;
+PoseTracker& PoseTracker::operator=(PoseTracker&&) noexcept = default;
+
+std::vector<ObjectPose> PoseTracker::track(const FrameView& f) {
+    PoseEstimator& est = *impl_->est;
+    check_frame(f, "PoseTracker::track");
+    PoseEstimator::Impl& m = *est.impl_;
+    const infer::HypothesisOptions ho = m.hypothesis_options();
+    std::lock_guard<std::mutex> lock(m.mutex);
+    geom::Intrinsics K;
+    const float* depth = m.begin_frame(f, &K);
+    // The detector only when the tracker asks.
+    auto detect = [&]() { return m.detections(m.detect(f), ho); };
+    impl_->tracker->step(depth, K, ho, detect, &m.hyps);
+    return m.to_public(m.hyps);
+}
+
+void PoseTracker::reset() { impl_->tracker->reset(); }
+
+bool PoseTracker::detected() const { return impl_->tracker->detected(); }
 
 }  // namespace g2l

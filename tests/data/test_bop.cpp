@@ -201,14 +201,26 @@ TEST_CASE("BopOptions filter scenes and objects and set symmetric ids", "[data]"
     REQUIRE_THROWS_WITH(open_bop(mini_root() + "/nope", "test"), Contains("/nope"));
 }
 
-TEST_CASE("dataset name selects the default symmetric objects", "[data]") {
-    CHECK(default_symmetric_ids("ycbv") == std::vector<int>{13, 16, 19, 20, 21});
-    CHECK(default_symmetric_ids("YCBV_mini") == std::vector<int>{13, 16, 19, 20, 21});
-    CHECK(default_symmetric_ids("lmo") == std::vector<int>{10, 11});
-    CHECK(default_symmetric_ids("lm") == std::vector<int>{10, 11});
-    bool known = true;
-    CHECK(default_symmetric_ids("tless", &known).empty());
-    CHECK_FALSE(known);
+TEST_CASE("symmetric objects come from the data or a named convention, never the folder's name",
+          "[data]") {
+    CHECK(symmetric_convention("ycbv") == std::vector<int>{13, 16, 19, 20, 21});
+    CHECK(symmetric_convention("YCBV") == std::vector<int>{13, 16, 19, 20, 21});
+    CHECK(symmetric_convention("lmo") == std::vector<int>{10, 11});
+    CHECK(symmetric_convention("lm") == std::vector<int>{10, 11});
+    CHECK_THROWS_WITH(symmetric_convention("tless"), Contains("no symmetric-object convention 'tless'"));
+    // A models_info.json that declares object 14 symmetric, in folders of any name: the same
+    // flags ("ycbv_mini" once guessed 13, 16, 19, 20, 21 from its name).
+    for (const char* name : {"ycbv", "lm_copy", "my_parts"}) {
+        const std::string root = g2l::testing::temp_dir("symnames") + "/" + name;
+        std::filesystem::copy(mini_root(), root, std::filesystem::copy_options::recursive);
+        json info = json::parse(std::ifstream(root + "/models/models_info.json"));
+        info["14"]["symmetries_continuous"] = json::array({{{"axis", {0, 0, 1}}, {"offset", {0, 0, 0}}}});
+        std::ofstream(root + "/models/models_info.json") << info.dump();
+        const BopDataset ds = open_bop(root, "train_real");
+        INFO(name);
+        CHECK(ds.model(14).info.symmetric);
+        CHECK_FALSE(ds.model(8).info.symmetric);
+    }
     CHECK(default_object_name("lmo", 1) == "ape");
     CHECK(default_object_name("lm", 15) == "phone");
     CHECK(default_object_name("ycbv", 1).empty());
@@ -362,8 +374,14 @@ TEST_CASE("open_bop reads the 60 YCB-V train_real frames of ../shared", "[data][
     REQUIRE(ds.frames().size() == 60);
     CHECK(ds.models().size() == 21);
     CHECK(ds.model(1).name == "002_master_chef_can");
-    for (int id : {13, 16, 19, 20, 21}) CHECK(ds.model(id).info.symmetric);
-    CHECK_FALSE(ds.model(1).info.symmetric);
+    // ../shared's models_info.json declares no symmetries (the YCB-Video convention is asked
+    // for by name: g2l_eval --symmetric ycbv).
+    for (const auto& [id, m] : ds.models()) CHECK_FALSE(m.info.symmetric);
+    BopOptions conv;
+    conv.symmetric_ids = symmetric_convention("ycbv");
+    const BopDataset named = open_bop(*shared + "/ycbv", "train_real", conv);
+    for (int id : {13, 16, 19, 20, 21}) CHECK(named.model(id).info.symmetric);
+    CHECK_FALSE(named.model(1).info.symmetric);
     const std::map<std::string, std::set<int>> expected = {
         {"000000", {8, 14, 21}}, {"000001", {1, 2, 3, 5}}, {"000002", {5, 7, 9, 10, 16, 18}}};
     std::map<std::string, std::set<int>> seen;

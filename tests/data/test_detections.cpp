@@ -66,3 +66,43 @@ TEST_CASE("BOP detection files: malformed input names the file, entry and key", 
     std::ofstream(dir + "/d.json") << R"([{"category_id": 3, "bbox": [1, 2, 3, 4]}])";
     CHECK(g2l::data::load_bop_detections(dir + "/d.json").at(0).obj_id == 3);
 }
+
+TEST_CASE("BOP results CSV: rows, and every malformed line named", "[data]") {
+    using g2l::data::parse_bop_results_csv;
+    const auto rows = parse_bop_results_csv(
+        "scene_id,im_id,obj_id,score,R,t,time\r\n"
+        "48,1,5,0.75,1 0 0 0 1 0 0 0 1,10.5 -2 600,0.031\n"
+        "\n"
+        "0,7,2,-1,0 -1 0 1 0 0 0 0 1,0 0 1e3,-1\n",
+        "mem");
+    REQUIRE(rows.size() == 2);
+    CHECK(rows[0].scene_id == 48);
+    CHECK(rows[0].image_id == 1);
+    CHECK(rows[0].obj_id == 5);
+    CHECK(rows[0].score == 0.75);
+    CHECK(rows[0].R[4] == 1.0);
+    CHECK(rows[0].t[0] == 10.5);
+    CHECK(rows[0].t[2] == 600.0);
+    CHECK(rows[0].time == 0.031);
+    CHECK(rows[1].R[1] == -1.0);
+    CHECK(rows[1].t[2] == 1000.0);
+    CHECK(rows[1].time == -1.0);
+    const std::string head = "scene_id,im_id,obj_id,score,R,t,time\n";
+    CHECK_THROWS_WITH(parse_bop_results_csv("", "e.csv"), Contains("no BOP header"));
+    CHECK_THROWS_WITH(parse_bop_results_csv("scene,im,obj\n", "h.csv"),
+                      Contains("the first line must be the BOP header"));
+    CHECK_THROWS_WITH(parse_bop_results_csv(head + "1,2,3\n", "f.csv"),
+                      Contains("'f.csv' line 2: expected 7 comma-separated fields"));
+    CHECK_THROWS_WITH(parse_bop_results_csv(head + "1,2,0,1,1 0 0 0 1 0 0 0 1,0 0 1,0\n", "o.csv"),
+                      Contains("obj_id '0' is not an integer >= 1"));
+    CHECK_THROWS_WITH(parse_bop_results_csv(head + "1.5,2,3,1,1 0 0 0 1 0 0 0 1,0 0 1,0\n", "s.csv"),
+                      Contains("scene_id '1.5'"));
+    CHECK_THROWS_WITH(parse_bop_results_csv(head + "1,2,3,nan,1 0 0 0 1 0 0 0 1,0 0 1,0\n", "n.csv"),
+                      Contains("score 'nan' is not a list of finite numbers"));
+    CHECK_THROWS_WITH(parse_bop_results_csv(head + "1,2,3,1,1 0 0 0 1 0 0 0 1,0 0,0\n", "t.csv"),
+                      Contains("R needs 9 numbers and t 3, got 9 and 2"));
+    CHECK_THROWS_WITH(parse_bop_results_csv(head + "1,2,3,1,1 0 0 0 x 0 0 0 1,0 0 1,0\n", "r.csv"),
+                      Contains("line 2: R '1 0 0 0 x 0 0 0 1'"));
+    CHECK_THROWS_WITH(g2l::data::load_bop_results_csv("/nonexistent/r.csv"),
+                      Contains("'/nonexistent/r.csv': cannot open"));
+}

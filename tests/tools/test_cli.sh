@@ -127,6 +127,28 @@ expect 1 "$B/apps/g2l_render" --models "$M" --out "$T/r" --frames 1 --threads 1
 has "already holds a rendered scene"
 expect 0 "$B/apps/g2l_render" --models "$M" --out "$T/r" --frames 1 --threads 1 --force
 # An object the meshes do not have is named with the option, not the scene generator.
+# Symmetries travel with the meshes: a models_info.json beside them that declares object 14
+# symmetric gives a rendered models_info.json that still does, and g2l_eval marks it (sym)
+# whatever the dataset folder is called.
+mkdir -p "$T/symm"
+cp "$M"/obj_*.ply "$T/symm/"
+sed 's/"14": *{/"14": {"symmetries_continuous": [{"axis": [0, 0, 1], "offset": [0, 0, 0]}], /' "$M/models_info.json" > "$T/symm/models_info.json"
+grep -q symmetries_continuous "$T/symm/models_info.json" || fail "test set-up: no symmetry written into $(cat "$T/symm/models_info.json")"
+expect 0 "$B/apps/g2l_render" --models "$T/symm" --out "$T/rsym" --frames 1 --threads 1
+grep -q '"symmetries_continuous"' "$T/rsym/models/models_info.json" || fail "g2l_render dropped the declared symmetries: $(cat "$T/rsym/models/models_info.json")"
+for name in lm_parts my_parts; do
+    mkdir -p "$T/$name"
+    cp -r "$S/tests/data/ycbv_mini/train_real" "$T/$name/"
+    cp -r "$T/rsym/models" "$T/$name/"
+    expect 0 "$B/apps/g2l_eval" --checkpoint "$S/models/ycbv_sim2real.g2l" --root "$T/$name" --split train_real --refine none
+    grep -q "^| 14 [^|]*(sym) |" "$T/out" || fail "g2l_eval on '$name': object 14 not marked (sym): $(cat "$T/out")"
+    grep "^| 8 " "$T/out" | grep -q "(sym)" && fail "g2l_eval on '$name': object 8 marked (sym)"
+    # the figures (every column after the object's name)
+    sed '/^Time/,$d' "$T/out" | grep "^| [0-9*]" | cut -d'|' -f3- > "$T/eval_$name.md"
+done
+cmp -s "$T/eval_lm_parts.md" "$T/eval_my_parts.md" || fail "g2l_eval: another folder name gave other figures: $(diff "$T/eval_lm_parts.md" "$T/eval_my_parts.md")"
+expect 1 "$B/apps/g2l_eval" --checkpoint "$S/models/ycbv_sim2real.g2l" --root "$T/my_parts" --split train_real --symmetric tless
+has "no symmetric-object convention 'tless'"
 expect 1 "$B/apps/g2l_render" --models "$M" --out "$T/r99" --frames 1 --objects 99
 has "--objects: object 99 is not among the meshes of --models (8, 14)"
 hasnt "SceneGenerator"
@@ -288,4 +310,64 @@ grep -q '"refine": "none"' "$T/norefine.json" || fail "g2l_eval --refine none: t
 [ "$(grep -c '"fit_mm"' "$T/norefine.jsonl")" -eq 0 ] || fail "g2l_eval --refine none: no fit"
 expect 2 "$B/apps/g2l_eval" --checkpoint x.g2l --root r --refine fast
 has "fast"
+# A video in one process (g2l_infer --scene, --track): the fixture scene's frames 1 and 11
+# (a 10-frame gap), then 11 again, with a corrupt depth image (frame 2) and a frame without a
+# camera entry (frame 13) in the middle: those frames' errors are reported, the others written,
+# exit 1.
+V="$T/video/000000"
+mkdir -p "$V/depth" "$V/rgb"
+K='"cam_K": [1066.778, 0, 312.9869, 0, 1067.487, 241.3109, 0, 0, 1], "depth_scale": 0.1'
+printf '{"1": {%s}, "2": {%s}, "11": {%s}, "12": {%s}}\n' "$K" "$K" "$K" "$K" > "$V/scene_camera.json"
+cp "$F/depth/000001.png" "$V/depth/000001.png"
+head -c 3000 "$F/depth/000011.png" > "$V/depth/000002.png"
+cp "$F/depth/000011.png" "$V/depth/000011.png"
+cp "$F/depth/000011.png" "$V/depth/000012.png"
+cp "$F/depth/000011.png" "$V/depth/000013.png"
+expect 2 "$B/apps/g2l_infer" --model "$MODEL" --scene "$V" --box 8,1,2,3,4
+has "--box is for one frame"
+expect 2 "$B/apps/g2l_infer" --model "$MODEL" --scene "$V" --detector "$S/models/ycbv_detector.g2l" --track
+has "--track needs --detector and --meshes"
+expect 2 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$F/scene_camera.json" \
+    --image-id 1 --detector "$S/models/ycbv_detector.g2l" --meshes "$S/tests/data/ycbv_mini/models" --track
+has "--track follows poses across the frames"
+expect 1 "$B/apps/g2l_infer" --model "$MODEL" --scene "$T/video/none" --detector "$S/models/ycbv_detector.g2l"
+has "is not a folder"
+expect 1 "$B/apps/g2l_infer" --model "$MODEL" --scene "$V" --detector "$S/models/ycbv_detector.g2l" \
+    --meshes "$S/tests/data/ycbv_mini/models" --track --min-pose-score 0.5 --json "$T/video_json" \
+    --bop-csv "$T/video.csv" --vis "$T/video_vis"
+has "frame 2/5 (image 000002) failed, the others go on"
+has "000002.png"
+has "frame 5/5 (image 000013) failed"
+has "no entry for image 13"
+has "2 of 5 frames failed"
+for i in 000001 000011 000012; do
+    [ -s "$T/video_json/$i.json" ] || fail "g2l_infer --scene: no JSON for frame $i"
+    [ -s "$T/video_vis/$i.png" ] || fail "g2l_infer --scene --vis: no picture for frame $i"
+done
+[ ! -e "$T/video_json/000002.json" ] || fail "g2l_infer --scene: a JSON for the corrupt frame"
+grep -q '"detected": true' "$T/video_json/000001.json" || fail "the first frame runs the detector"
+grep -q '"detected": false' "$T/video_json/000012.json" || fail "frame 12 (= 11) is followed, not detected"
+grep -q '"tracked": true' "$T/video_json/000012.json" || fail "frame 12: tracked poses"
+# Each of the three good frames: a row per object in the CSV, scored as right by g2l_eval --poses.
+for i in 1 11 12; do
+    [ "$(grep -c "^0,$i,\(8\|14\)," "$T/video.csv")" -eq 2 ] || fail "video CSV: frame $i needs 2 rows: $(cat "$T/video.csv")"
+done
+expect 0 "$B/apps/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
+    --poses "$T/video.csv" --json "$T/video_eval.json"
+grep -q '"acc_adds_all_10": 100.0' "$T/video_eval.json" || fail "g2l_eval --poses: the tracked poses of frames 1 and 11 are right: $(cat "$T/video_eval.json")"
+grep -q "poses $T/video.csv" "$T/out" || fail "g2l_eval --poses: the table names the CSV"
+printf 'scene_id,im_id,obj_id,score,R,t,time\n0,1,8,0.5,1 0 0 0 1 0 0 0,0 0 500,0.1\n' > "$T/bad.csv"
+expect 1 "$B/apps/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real --poses "$T/bad.csv"
+has "bad.csv' line 2: R needs 9 numbers and t 3, got 8 and 3"
+expect 2 "$B/apps/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real --poses "$T/bad.csv" --boxes det
+has "--poses scores given poses"
+# A list of frames (--frames) with one camera; without --json one JSON line per frame.
+printf '# depth rgb\n%s %s\n\n%s\n' "$F/depth/000001.png" "$F/rgb/000001.png" "$F/depth/000011.png" > "$T/list.txt"
+expect 0 "$B/apps/g2l_infer" --model "$MODEL" --frames "$T/list.txt" --camera "$V/scene_camera.json" \
+    --image-id 1 --detector "$S/models/ycbv_detector.g2l" --meshes "$S/tests/data/ycbv_mini/models" --quiet
+[ "$(wc -l < "$T/out")" -eq 2 ] || fail "g2l_infer --frames: 2 JSON lines expected: $(cat "$T/out")"
+printf '%s a b\n' "$F/depth/000001.png" > "$T/list3.txt"
+expect 1 "$B/apps/g2l_infer" --model "$MODEL" --frames "$T/list3.txt" --camera "$V/scene_camera.json" \
+    --image-id 1 --detector "$S/models/ycbv_detector.g2l"
+has "list3.txt' line 1: expected DEPTH_PNG [RGB_IMAGE]"
 echo "cli: every check passed"

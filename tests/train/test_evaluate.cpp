@@ -79,6 +79,10 @@ TEST_CASE("aggregate: per-object and average figures of a hand-made case", "[tra
     CHECK_THAT(md, Catch::Contains("Depth refinement (none): none, the networks' poses"));
     CHECK_THAT(md, Catch::Contains("| 2 | 0.0 | 0.0 | 0.0 | 180.0 | 0.0 | 0.0 | - | - | - |"));
     CHECK_THAT(md, Catch::Contains("| 1 | 0 | 100.0 |"));  // object 1: one instance, found
+    // The columns say how a miss counts.
+    CHECK_THAT(md, Catch::Contains("rot err sym median (deg; miss = 180)") &&
+                       Catch::Contains("rot err (deg; found)") &&
+                       Catch::Contains("counts as a wrong pose in the accuracies"));
 }
 
 TEST_CASE("aggregate: instances of unknown objects or bad diameters throw", "[train][eval]") {

@@ -21,6 +21,15 @@
 
 namespace {
 
+// The real video the frame figures run on: ../shared/data/ycbv/train_real/000001 (4 objects)
+// when that is there, else the fixture's scene (tests/data/ycbv_mini, 2 objects).
+std::pair<std::string, std::string> bench_scene() {
+    namespace fs = std::filesystem;
+    const std::string root = g2l::train::shared_data_root("") + "/ycbv";
+    if (fs::is_directory(root + "/train_real/000001")) return {root, "000001"};
+    return {std::string(G2L_SOURCE_DIR) + "/tests/data/ycbv_mini", "000000"};
+}
+
 // frame_ms: the whole pipeline of the library (g2l::PoseEstimator, the code g2l_infer and an
 // embedding program run) on one real 640 x 480 frame: the detector, then the poses of its
 // `objects` best boxes, each refined against its mesh. The frame: the first one of
@@ -28,13 +37,7 @@ namespace {
 // first frame (tests/data/ycbv_mini); the what-string says which.
 std::vector<g2l::tools::BenchFigure> bench_frame(int reps, const std::string& model,
                                                  const std::string& detector, int objects) {
-    namespace fs = std::filesystem;
-    const std::string shared = g2l::train::shared_data_root("");
-    std::string root = shared + "/ycbv", scene = "000001";
-    if (!fs::is_directory(root + "/train_real/" + scene)) {
-        root = std::string(G2L_SOURCE_DIR) + "/tests/data/ycbv_mini";
-        scene = "000000";
-    }
+    const auto [root, scene] = bench_scene();
     const g2l::data::BopDataset ds = g2l::data::open_bop(root, "train_real", {});
     const g2l::data::Frame* fr = nullptr;
     for (const auto& f : ds.frames())
@@ -110,13 +113,7 @@ std::vector<g2l::tools::BenchFigure> bench_frame(int reps, const std::string& mo
 // pose, a weak pose every 3 frames, every 10 frames).
 std::vector<g2l::tools::BenchFigure> bench_track(int passes, const std::string& model,
                                                  const std::string& detector) {
-    namespace fs = std::filesystem;
-    const std::string shared = g2l::train::shared_data_root("");
-    std::string root = shared + "/ycbv", scene = "000001";
-    if (!fs::is_directory(root + "/train_real/" + scene)) {
-        root = std::string(G2L_SOURCE_DIR) + "/tests/data/ycbv_mini";
-        scene = "000000";
-    }
+    const auto [root, scene] = bench_scene();
     const g2l::data::BopDataset ds = g2l::data::open_bop(root, "train_real", {});
     struct Frame {
         std::vector<uint16_t> depth;

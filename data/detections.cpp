@@ -63,13 +63,22 @@ std::vector<Detection> parse_bop_detections(const std::string& text, const std::
     return out;
 }
 
-std::vector<Detection> load_bop_detections(const std::string& path) {
+namespace {
+
+// A whole file's text; `what` ("detections", "results") names it in errors.
+std::string read_text(const std::string& path, const char* what) {
     std::ifstream f(path, std::ios::binary);
-    G2L_CHECK(f.good(), "detections '", path, "': cannot open the file");
+    G2L_CHECK(f.good(), what, " '", path, "': cannot open the file");
     std::ostringstream ss;
     ss << f.rdbuf();
-    G2L_CHECK(!f.bad(), "detections '", path, "': read error");
-    return parse_bop_detections(ss.str(), path);
+    G2L_CHECK(!f.bad(), what, " '", path, "': read error");
+    return ss.str();
+}
+
+}  // namespace
+
+std::vector<Detection> load_bop_detections(const std::string& path) {
+    return parse_bop_detections(read_text(path, "detections"), path);
 }
 
 namespace {
@@ -145,12 +154,7 @@ std::vector<PoseRow> parse_bop_results_csv(const std::string& text, const std::s
 }
 
 std::vector<PoseRow> load_bop_results_csv(const std::string& path) {
-    std::ifstream f(path, std::ios::binary);
-    G2L_CHECK(f.good(), "results '", path, "': cannot open the file");
-    std::ostringstream ss;
-    ss << f.rdbuf();
-    G2L_CHECK(!f.bad(), "results '", path, "': read error");
-    return parse_bop_results_csv(ss.str(), path);
+    return parse_bop_results_csv(read_text(path, "results"), path);
 }
 
 }  // namespace g2l::data

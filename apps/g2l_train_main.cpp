@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 // g2l_train: trains G2L-Net from a JSON config (docs/config.md).
 #include <CLI/CLI.hpp>
+#include "core/error.h"
+#include <nlohmann/json.hpp>
 #include <atomic>
 #include <csignal>
 
@@ -26,6 +28,41 @@ struct DistSession {
     DistSession(int* argc, char*** argv) { g2l::train::dist::init(argc, argv); }
     ~DistSession() { g2l::train::dist::finalize(); }
 };
+}  // namespace
+
+namespace {
+
+/// --resume with --set: a change of what the checkpoint's weights mean (which objects the
+/// classes are and in which order, the keypoints, the widths, the heads) would load them into a
+/// network that reads them otherwise; refused, naming the key and both values. The schedule,
+/// the epochs, the learning rate and the like may change.
+void refuse_meaning_changes(const std::string& run, const std::string& cfg_path,
+                            const std::vector<std::string>& sets, bool detector) {
+    using json = nlohmann::json;
+    const auto as_json = [&](const std::vector<std::string>& s) {
+        return json::parse(detector ? g2l::train::detector_config_to_json(
+                                          g2l::train::load_detector_config(cfg_path, s))
+                                    : g2l::train::config_to_json(g2l::train::load_config(cfg_path, s)));
+    };
+    const json saved = as_json({}), now = as_json(sets);
+    const std::vector<std::string> keys =
+        detector ? std::vector<std::string>{"/data/object_ids", "/data/input", "/data/downscale",
+                                            "/model/width"}
+                 : std::vector<std::string>{"/data/object_ids", "/model/num_classes",
+                                            "/model/keypoints", "/model/evf", "/model/rre",
+                                            "/model/width", "/model/out_scale_mm",
+                                            "/model/rot_unit", "/model/class_heads"};
+    for (const std::string& k : keys) {
+        const json::json_pointer p(k);
+        if (!saved.contains(p) || !now.contains(p) || saved.at(p) == now.at(p)) continue;
+        std::string key = k.substr(1);
+        for (char& c : key) c = c == '/' ? '.' : c;
+        G2L_CHECK(false, "--resume '", run, "' --set ", key, "=", now.at(p).dump(),
+                  ": the run's weights were trained with ", key, " = ", saved.at(p).dump(),
+                  " and would mean something else; start a new run (--config with a new run_dir)");
+    }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -127,7 +164,9 @@ int main(int argc, char** argv) {
         opt.progress = !quiet;
         opt.force = force;
         opt.stop_flag = &g_stop;
-        if (g2l::train::is_detector_config(cfg_path)) {  // "task": "detector"
+        const bool detector = g2l::train::is_detector_config(cfg_path);  // "task": "detector"
+        if (!resume.empty() && !sets.empty()) refuse_meaning_changes(resume, cfg_path, sets, detector);
+        if (detector) {
             const auto dcfg = g2l::train::load_detector_config(cfg_path, sets);
             const auto s = g2l::train::run_detector_training(dcfg, opt);
             if (s.interrupted) return interrupted(s.steps, s.run_dir);

@@ -6,6 +6,11 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <memory>
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -13,6 +18,44 @@
 namespace g2l::train {
 
 namespace fs = std::filesystem;
+
+namespace {
+
+// One writer per run directory: an exclusive flock on <dir>/run.lock, held while the RunDir
+// lives (the kernel drops it when the process dies, even by SIGKILL: no stale lock to clean).
+// The file says who holds it, so the refusal can name the other process.
+std::shared_ptr<int> lock_run_dir(const std::string& dir) {
+    const std::string path = (fs::path(dir) / "run.lock").string();
+    const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    G2L_CHECK(fd >= 0, "cannot open the run directory's lock '", path, "': ", std::strerror(errno));
+    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+        const int err = errno;
+        char buf[128] = {0};
+        const ssize_t n = ::pread(fd, buf, sizeof buf - 1, 0);
+        ::close(fd);
+        std::string who = n > 0 ? std::string(buf, size_t(n)) : std::string("unknown process");
+        while (!who.empty() && (who.back() == '\n' || who.back() == ' ')) who.pop_back();
+        G2L_CHECK(err != EWOULDBLOCK, "run directory '", dir, "' is in use by another g2l_train (",
+                  who, "): wait for it to finish or stop it (Ctrl-C / kill) before --resume or "
+                  "--force");
+        G2L_CHECK(false, "cannot lock the run directory '", dir, "' (", path, "): ",
+                  std::strerror(err));
+    }
+    const std::string me = "pid " + std::to_string(::getpid()) + "\n";
+    const bool wrote = ::ftruncate(fd, 0) == 0 &&
+                       ::pwrite(fd, me.data(), me.size(), 0) == ssize_t(me.size());
+    if (!wrote) {
+        const int err = errno;
+        ::close(fd);
+        G2L_CHECK(false, "cannot write the run directory's lock '", path, "': ", std::strerror(err));
+    }
+    return std::shared_ptr<int>(new int(fd), [](int* p) {
+        ::close(*p);  // releases the lock
+        delete p;
+    });
+}
+
+}  // namespace
 
 RunDir::RunDir(std::string dir, bool resume, bool force, std::vector<std::string> logs,
                bool writer)
@@ -28,6 +71,12 @@ RunDir::RunDir(std::string dir, bool resume, bool force, std::vector<std::string
     } else {
         G2L_CHECK(fs::is_regular_file(fs::path(dir_) / "last.g2l"), "--resume '", dir_,
                   "': no last.g2l there (not a run directory, or the run never saved)");
+    }
+    fs::create_directories(dir_, ec);
+    G2L_CHECK(!ec && fs::is_directory(dir_), "cannot create the run directory '", dir_, "': ",
+              ec ? ec.message() : std::string("not a directory"));
+    lock_ = lock_run_dir(dir_);  // before touching anything another writer may be writing
+    if (resume) {
         for (const auto& e : fs::directory_iterator(dir_, ec)) {
             const std::string name = e.path().filename().string();
             if (name.find(".g2l.tmp.") != std::string::npos ||
@@ -36,9 +85,6 @@ RunDir::RunDir(std::string dir, bool resume, bool force, std::vector<std::string
                 fs::remove(e.path(), ec);
         }
     }
-    fs::create_directories(dir_, ec);
-    G2L_CHECK(!ec && fs::is_directory(dir_), "cannot create the run directory '", dir_, "': ",
-              ec ? ec.message() : std::string("not a directory"));
     const fs::path probe = fs::path(dir_) / ".write_test";
     {
         std::ofstream t(probe);

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <utility>
@@ -24,7 +25,10 @@ public:
     ///  - new run (`resume` false): refuses a directory that holds a run (config.json,
     ///    steps.jsonl or last.g2l) unless `force`;
     ///  - resumed run: needs last.g2l, removes the leftovers of a write a kill interrupted
-    ///    (<name>.tmp.<pid>; the file they were to replace is intact).
+    ///    (<name>.tmp.<pid>; the file they were to replace is intact);
+    ///  - then locks it (<dir>/run.lock, held while this object lives): a second writer — another
+    ///    g2l_train on the directory, --resume or --force while one runs — is refused, naming the
+    ///    process that holds it.
     /// `logs` are the JSONL logs of the job (e.g. "steps.jsonl"). Throws g2l::Error naming the
     /// directory. `writer` false (the ranks other than 0 of a data-parallel job,
     /// train/distributed.h): the directory is only named — no check, and begin / trim_log /
@@ -57,6 +61,7 @@ private:
     bool resumed_ = false;
     bool writer_ = true;
     std::vector<std::string> logs_;
+    std::shared_ptr<int> lock_;  // the open run.lock (writer only): one writer per directory
 };
 
 /// The tensors of a training checkpoint: the model's state under "model.<name>" and the

@@ -59,4 +59,32 @@ s_ck=$(ckpt_step "$T/kill")
 "$TRAIN" --resume "$T/kill" --quiet >"$T/kill_resume.log" 2>&1 || fail "resume after SIGKILL failed"
 ls "$T/kill" | grep -q '\.tmp' && fail "a temporary file of an interrupted write survived the resume"
 [ "$(last_step "$T/kill")" -eq 72 ] || fail "resumed run ended at step $(last_step "$T/kill"), not 72"
+# 3. One writer per run directory: while a run trains, --resume and --force on its directory are
+#    refused naming the process (run.lock); once it stopped, --resume goes on.
+"$TRAIN" --config "$S/configs/demo_cpu.json" --set "run_dir=$T/lock" $SETS --quiet >"$T/lock.log" 2>&1 &
+pid=$!
+i=0
+while [ ! -s "$T/lock/last.g2l" ]; do
+    sleep 0.1; i=$((i + 1)); [ $i -lt 1200 ] || fail "no checkpoint to lock against"
+done
+"$TRAIN" --resume "$T/lock" --quiet >"$T/lock_resume.log" 2>&1
+rc=$?
+[ $rc -eq 1 ] || fail "--resume while the run trains: exit $rc, expected 1"
+grep -q "is in use by another g2l_train (pid $pid)" "$T/lock_resume.log" || fail "--resume while the run trains: the other process is not named: $(cat "$T/lock_resume.log")"
+"$TRAIN" --config "$S/configs/demo_cpu.json" --set "run_dir=$T/lock" $SETS --force --quiet >"$T/lock_force.log" 2>&1
+rc=$?
+[ $rc -eq 1 ] || fail "--force while the run trains: exit $rc, expected 1"
+grep -q "is in use by another g2l_train (pid $pid)" "$T/lock_force.log" || fail "--force while the run trains: not refused by the lock: $(cat "$T/lock_force.log")"
+kill -TERM $pid
+wait $pid
+# --resume refuses --set changes of what the weights mean, naming the key; others go through.
+"$TRAIN" --resume "$T/lock" --set model.width=0.5 --quiet >"$T/lock_width.log" 2>&1
+rc=$?
+[ $rc -eq 1 ] || fail "--resume --set model.width: exit $rc, expected 1"
+grep -q "set model.width=0.5: the run's weights were trained with model.width = " "$T/lock_width.log" || fail "--resume --set model.width: $(cat "$T/lock_width.log")"
+"$TRAIN" --resume "$T/lock" --set data.object_ids=[14,8] --quiet >"$T/lock_ids.log" 2>&1
+rc=$?
+[ $rc -eq 1 ] || fail "--resume with the object ids reordered: exit $rc, expected 1"
+grep -q "data.object_ids" "$T/lock_ids.log" || fail "--resume with the object ids reordered: $(cat "$T/lock_ids.log")"
+"$TRAIN" --resume "$T/lock" --max-steps 40 --quiet >"$T/lock_after.log" 2>&1 || fail "--resume after the run stopped: $(cat "$T/lock_after.log")"
 echo "signals: SIGTERM at step $t_log checkpointed exactly; SIGKILL at step $target lost $((s_log - s_ck)) steps; both resumed to the end"

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
+#include <limits>
 
 #include "core/error.h"
 #include "core/threads.h"
@@ -172,6 +173,66 @@ std::vector<g2l::tools::BenchFigure> bench_track(int passes, const std::string& 
             {"track_frame_mean_ms", mean, "ms", what + " (mean)"}};
 }
 
+// soak_rss_growth_pct: `frames` frames through one g2l::PoseEstimator (the bench scene's frames in
+// turn, meshes given): each frame one box posed, refined and verified, the box alternating
+// between the objects; every 25th frame also a box outside the image and a frame whose depth is
+// all NaN (the error roads); every 100th the whole estimate(frame) road. The resident memory at
+// frame 1000 against the end: flat means nothing grows per frame.
+std::vector<g2l::tools::BenchFigure> bench_soak(int frames, const std::string& model,
+                                                const std::string& detector) {
+    const auto [root, scene] = bench_scene();
+    const g2l::data::BopDataset ds = g2l::data::open_bop(root, "train_real", {});
+    std::vector<std::vector<uint16_t>> depths;
+    std::vector<g2l::FrameView> views;
+    for (const auto& f : ds.frames()) {
+        if (f.scene != scene || depths.size() >= 8) continue;
+        int w = 0, h = 0;
+        depths.push_back(g2l::data::load_depth_png(f.depth_path, &w, &h));
+        g2l::FrameView v;
+        v.width = w, v.height = h;
+        v.depth_scale = f.depth_scale;
+        v.K = {f.K.fx, f.K.fy, f.K.cx, f.K.cy};
+        views.push_back(v);
+    }
+    for (size_t i = 0; i < views.size(); ++i) views[i].depth_u16 = depths[i].data();
+    std::vector<float> nan_depth(size_t(views[0].width) * size_t(views[0].height),
+                                 std::numeric_limits<float>::quiet_NaN());
+    g2l::FrameView nan_view = views[0];
+    nan_view.depth_u16 = nullptr;
+    nan_view.depth_mm = nan_depth.data();
+    g2l::EstimatorOptions opt;
+    opt.detector = detector;
+    opt.meshes = root + "/models";
+    g2l::PoseEstimator est(model, opt);
+    std::vector<std::vector<g2l::ObjectBox>> boxes;  // each frame's detections, found once
+    for (const auto& v : views) boxes.push_back(est.detect(v));
+    double rss_1000 = -1;
+    const int mark = std::min(1000, std::max(1, frames / 10));
+    int poses = 0;
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int n = 0; n < frames; ++n) {
+        const size_t k = size_t(n) % views.size();
+        if (!boxes[k].empty()) {
+            const g2l::ObjectBox b = boxes[k][size_t(n / int(views.size())) % boxes[k].size()];
+            for (const auto& p : est.estimate(views[k], {b})) poses += p.ok();
+        }
+        if (n % 25 == 0) {
+            est.estimate(views[k], {{boxes[k].empty() ? 1 : boxes[k][0].obj_id, 5000, 5000, 10, 10}});
+            est.estimate(nan_view, boxes[0]);
+        }
+        if (n % 100 == 0) poses += int(est.estimate(views[k]).size());
+        if (n + 1 == mark) rss_1000 = g2l::tools::current_rss_mb();
+    }
+    const double rss_end = g2l::tools::current_rss_mb();
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const std::string what = g2l::cat(frames, " frames through one PoseEstimator on ", root,
+                                      "/train_real/", scene, " (", poses, " poses, ", secs,
+                                      " s): resident ", rss_1000, " MB at frame ", mark, ", ",
+                                      rss_end, " MB at the end");
+    return {{"soak_rss_growth_pct", 100.0 * (rss_end - rss_1000) / rss_1000, "%", what},
+            {"soak_rss_mb", rss_end, "MB", what}};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -214,6 +275,11 @@ int main(int argc, char** argv) {
     app.add_option("--frame-model", frame_model, "pose model of the frame figure")->capture_default_str();
     app.add_option("--frame-detector", frame_detector, "detector of the frame figure")
         ->capture_default_str();
+    int soak_frames = 0;
+    app.add_option("--soak-frames", soak_frames,
+                   "frames through one PoseEstimator for soak_rss_growth_pct (resident memory at "
+                   "frame 1000 against the end; 10000 takes ~5 min; 0 = skip)")
+        ->check(CLI::Range(0, 10000000));
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_bench"); rc >= 0) return rc;
@@ -249,6 +315,10 @@ int main(int argc, char** argv) {
             figs.insert(figs.end(), ff.begin(), ff.end());
             const auto tf = bench_track(quick ? 1 : 3, frame_model, frame_detector);
             figs.insert(figs.end(), tf.begin(), tf.end());
+        }
+        if (soak_frames > 0) {
+            const auto sf = bench_soak(soak_frames, frame_model, frame_detector);
+            figs.insert(figs.end(), sf.begin(), sf.end());
         }
         if (train_reps > 0 && !pose_only) {
             // The setting: paper architecture, batch 8, 1500 -> 1000 points.

@@ -1,6 +1,10 @@
 // SPDX-License-Identifier: MIT
 #include "tools/bench.h"
 
+#include <unistd.h>
+
+#include <cstdio>
+
 #include <sys/resource.h>
 
 #include <cmath>
@@ -367,6 +371,15 @@ std::vector<BenchFigure> bench_refine(int reps) {
              "infer::PreparedMesh: k-d tree, normals and a closest-point grid of " +
                  std::to_string(grid.size()) + " cells of " + std::to_string(grid.cell_mm()) +
                  " mm (once per model)"}};
+}
+
+double current_rss_mb() {
+    std::FILE* f = std::fopen("/proc/self/statm", "r");
+    if (!f) return -1;
+    long pages = 0, resident = 0;
+    const int n = std::fscanf(f, "%ld %ld", &pages, &resident);
+    std::fclose(f);
+    return n == 2 ? double(resident) * double(sysconf(_SC_PAGESIZE)) / (1024.0 * 1024.0) : -1;
 }
 
 double peak_rss_mb() {

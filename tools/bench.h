@@ -58,5 +58,7 @@ std::vector<BenchFigure> bench_refine(int reps);
 
 /// Peak resident set size of this process so far (MB; getrusage).
 double peak_rss_mb();
+/// Resident set size of this process now (MB; /proc/self/statm); -1 where unreadable.
+double current_rss_mb();
 
 }  // namespace g2l::tools

@@ -63,6 +63,28 @@ void refuse_meaning_changes(const std::string& run, const std::string& cfg_path,
     }
 }
 
+/// --export CHECKPOINT OUT and --average OUT CHECKPOINT...: an inference export, then exit.
+int run_export(const std::vector<std::string>& export_args,
+               const std::vector<std::string>& average_args, bool verbose) {
+    try {
+        if (!export_args.empty()) {
+            const int64_t bytes = g2l::train::export_model(export_args[0], export_args[1]);
+            std::printf("g2l_train: exported %s -> %s (%.1f MB)\n", export_args[0].c_str(),
+                        export_args[1].c_str(), double(bytes) / 1e6);
+            return 0;
+        }
+        const std::vector<std::string> src(average_args.begin() + 1, average_args.end());
+        const int64_t bytes = g2l::nn::is_detector_export(src.front())
+                                  ? g2l::train::export_detector_average(src, average_args[0])
+                                  : g2l::train::export_average(src, average_args[0]);
+        std::printf("g2l_train: the mean of %zu checkpoints -> %s (%.1f MB)\n", src.size(),
+                    average_args[0].c_str(), double(bytes) / 1e6);
+        return 0;
+    } catch (const std::exception& e) {
+        return g2l::cli::report("g2l_train", e, verbose);
+    }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -105,29 +127,8 @@ int main(int argc, char** argv) {
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_train"); rc >= 0) return rc;
-    if (!export_args.empty()) {
-        try {
-            const int64_t bytes = g2l::train::export_model(export_args[0], export_args[1]);
-            std::printf("g2l_train: exported %s -> %s (%.1f MB)\n", export_args[0].c_str(),
-                        export_args[1].c_str(), double(bytes) / 1e6);
-            return 0;
-        } catch (const std::exception& e) {
-            return g2l::cli::report("g2l_train", e, verbose);
-        }
-    }
-    if (!average_args.empty()) {
-        try {
-            const std::vector<std::string> src(average_args.begin() + 1, average_args.end());
-            const int64_t bytes = g2l::nn::is_detector_export(src.front())
-                                      ? g2l::train::export_detector_average(src, average_args[0])
-                                      : g2l::train::export_average(src, average_args[0]);
-            std::printf("g2l_train: the mean of %zu checkpoints -> %s (%.1f MB)\n", src.size(),
-                        average_args[0].c_str(), double(bytes) / 1e6);
-            return 0;
-        } catch (const std::exception& e) {
-            return g2l::cli::report("g2l_train", e, verbose);
-        }
-    }
+    if (!export_args.empty() || !average_args.empty())
+        return run_export(export_args, average_args, verbose);
     if (config.empty() && resume.empty()) {
         std::fprintf(stderr, "g2l_train: give --config FILE (or --resume RUN_DIR)\n%s",
                      app.help().c_str());

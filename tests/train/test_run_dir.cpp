@@ -2,6 +2,8 @@
 // The training-job skeleton both trainers run on (train/run_dir.h).
 #include <catch2/catch.hpp>
 
+#include <unistd.h>
+
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -62,20 +64,27 @@ TEST_CASE("RunDir: a new run, a refused one, a resumed one", "[train]") {
     write(dir + "/last.g2l.tmp.12345", "half");
     write(dir + "/steps.jsonl",
           "{\"step\":1}\n{\"step\":2}\n{\"step\":3}\n{\"step\":4}\n{\"step\":");
-    const RunDir resumed(dir, true, false, {"steps.jsonl", "epochs.jsonl"});
-    CHECK(resumed.resumed());
-    CHECK_FALSE(fs::exists(dir + "/last.g2l.tmp.12345"));
-    CHECK(read(dir + "/last.g2l") == "checkpoint");
-    resumed.trim_log("steps.jsonl", "step", 2);
-    CHECK(read(dir + "/steps.jsonl") == "{\"step\":1}\n{\"step\":2}\n");
-    resumed.trim_log("epochs.jsonl", "epoch", 0);  // empty: stays empty
-    CHECK(read(dir + "/epochs.jsonl").empty());
-    // The effective config (--set included) replaces config.json; the logs are kept.
-    resumed.begin("{\"lr\": 2}\n");
-    CHECK(read(dir + "/config.json") == "{\"lr\": 2}\n");
-    CHECK(read(dir + "/steps.jsonl") == "{\"step\":1}\n{\"step\":2}\n");
+    {
+        const RunDir resumed(dir, true, false, {"steps.jsonl", "epochs.jsonl"});
+        CHECK(resumed.resumed());
+        // One writer at a time: while it holds the directory, a --force or another --resume there
+        // is refused, naming the holder.
+        REQUIRE_THROWS_WITH(RunDir(dir, false, true, {"steps.jsonl"}),
+                            Contains("is in use by another g2l_train (pid " + std::to_string(::getpid()) + ")"));
+        REQUIRE_THROWS_WITH(RunDir(dir, true, false, {"steps.jsonl"}), Contains("is in use"));
+        CHECK_FALSE(fs::exists(dir + "/last.g2l.tmp.12345"));
+        CHECK(read(dir + "/last.g2l") == "checkpoint");
+        resumed.trim_log("steps.jsonl", "step", 2);
+        CHECK(read(dir + "/steps.jsonl") == "{\"step\":1}\n{\"step\":2}\n");
+        resumed.trim_log("epochs.jsonl", "epoch", 0);  // empty: stays empty
+        CHECK(read(dir + "/epochs.jsonl").empty());
+        // The effective config (--set included) replaces config.json; the logs are kept.
+        resumed.begin("{\"lr\": 2}\n");
+        CHECK(read(dir + "/config.json") == "{\"lr\": 2}\n");
+        CHECK(read(dir + "/steps.jsonl") == "{\"step\":1}\n{\"step\":2}\n");
+    }
 
-    // --force starts over in the same directory, with empty logs.
+    // --force starts over in the same directory (the resumed run released it), with empty logs.
     const RunDir forced(dir, false, true, {"steps.jsonl"});
     forced.begin("{}\n");
     CHECK(read(dir + "/steps.jsonl").empty());

@@ -113,7 +113,7 @@ int run_bench(std::vector<LoadedModel> models, int frames, int threads, uint64_t
     if (models.empty()) {  // 4 icospheres of 5120 triangles + the support plane (128)
         for (int k = 0; k < 4; ++k) {
             models.push_back({k + 1, std::make_unique<geom::Mesh>(
-                                         data::make_icosphere(40.0 + 15.0 * k, 4))});
+                                         data::make_icosphere(40.0 + 15.0 * k, 4)), ""});
         }
     }
     data::SceneConfig cfg;

@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "data/render.h"
@@ -125,6 +126,9 @@ struct SceneModel {
     /// models_info.json's "symmetries_discrete" / "symmetries_continuous" entries (read_symmetries),
     /// copied into the models_info.json written beside the renders; "" = none declared.
     std::string symmetries;
+    SceneModel() = default;
+    SceneModel(int id, const geom::Mesh* m, std::string sym = "")
+        : obj_id(id), mesh(m), symmetries(std::move(sym)) {}
 };
 
 /// Ground truth of one annotated instance, with BOP scene_gt / scene_gt_info semantics.

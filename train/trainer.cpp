@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "train/trainer.h"
+#include "train/loop.h"
 #include "train/run_dir.h"
 
 #include <unistd.h>
@@ -244,12 +245,220 @@ std::vector<Item> epoch_order(const Sources& s, const RunData& rd, const TrainCo
     return order;
 }
 
-std::string fmt_time(double s) {
-    char b[32];
-    const int t = int(s + 0.5);
-    std::snprintf(b, sizeof b, "%d:%02d:%02d", t / 3600, (t / 60) % 60, t % 60);
-    return b;
-}
+// The pose networks' training task on the loop (train/loop.h): a batch of point-cloud crops
+// from the epoch's visiting order, the G2L-Net step (train/pipeline.h), validation on the
+// configured BOP sets, checkpoints with the resume state.
+class PoseTask final : public TrainTask {
+public:
+    PoseTask(const TrainConfig& cfg, RunData& rd, int64_t lo, int64_t hi)
+        : cfg_(cfg), rd_(rd), lo_(lo), hi_(hi),
+          mc_(model_config(cfg, rd.keypoints.empty() ? 8 : int(rd.keypoints[0].size()))),
+          net_(mc_),
+          adam_(net_.param_groups({cfg.optim.lr_mult.seg, cfg.optim.lr_mult.tnet,
+                                   cfg.optim.lr_mult.evf, cfg.optim.lr_mult.rot,
+                                   cfg.optim.lr_mult.rre},
+                                  cfg.optim.weight_decay),
+                adam_options(cfg)),
+          schedule_(nn::make_schedule(cfg.schedule.kind, cfg.optim.lr, cfg.schedule.step_epochs,
+                                      cfg.schedule.gamma, cfg.train.epochs)) {
+        lw_.seg = cfg.loss.seg, lw_.t = cfg.loss.t, lw_.vec = cfg.loss.vec;
+        lw_.kp = cfg.loss.kp, lw_.res = cfg.loss.res;
+        lw_.t_smooth_l1 = cfg.loss.t_loss == "smooth_l1";
+        for (const auto& kp : rd.keypoints)
+            so_.rot_scale.push_back(float(nn::rotation_scale(mc_.rot_unit, kp)));
+        so_.centre_noise_mm = cfg.loss.rot_centre_noise_mm;
+        so_.centre_with_prediction = cfg.loss.rot_centre == "pred";
+        for (const auto& [id, cls] : rd.class_of) {  // exports need each crop's radius
+            (void)cls;
+            const geom::ModelInfo& mi = rd.maker->info(id);
+            objects_[id] = {mi.diameter, mi.symmetric};
+        }
+    }
+
+    /// A resumed run: the model and Adam from `path`, and where the run stood.
+    LoopState resume(const std::string& path) {
+        const ResumeState st = load_training_checkpoint(path, net_, adam_);
+        LoopState s;
+        s.epoch = st.epoch, s.epoch_step = st.epoch_batches, s.step = st.global_step;
+        s.epoch_loss = st.epoch_loss, s.best_val = st.best_val, s.seconds = st.seconds;
+        return s;
+    }
+    int64_t parameters() const {
+        int64_t n = 0;
+        for (const nn::ParamGroup& g : adam_.groups())
+            for (const auto& p : g.params) n += p.second.numel();
+        return n;
+    }
+
+    nn::Adam& optimizer() override { return adam_; }
+    double lr(const LoopState& s) const override { return schedule_->lr_at(s.epoch); }
+
+    int64_t begin_epoch(const LoopState& s) override {
+        if (ahead_.valid()) ahead_.wait();  // a stopped epoch's prefetch reads the old sources
+        sources_ = make_train_sources(rd_, cfg_, s.epoch);
+        order_ = epoch_order(sources_, rd_, cfg_, s.epoch);
+        G2L_CHECK(!order_.empty(), "training data: epoch ", s.epoch, " has no sample to visit");
+        const int64_t target = cfg_.train.samples_per_epoch > 0 ? cfg_.train.samples_per_epoch
+                                                                : int64_t(order_.size());
+        batches_ = std::max<int64_t>(1, target / cfg_.train.batch);
+        tried_ = failed_ = 0;
+        epoch_ = s.epoch;
+        net_.train();
+        if (cfg_.train.prefetch && s.epoch_step < batches_)
+            ahead_ = std::async(std::launch::async, [this, b = s.epoch_step] { return fetch(b); });
+        return batches_;
+    }
+
+    StepValues step(const LoopState& s) override {
+        Fetched got = cfg_.train.prefetch ? ahead_.get() : fetch(s.epoch_step);
+        tried_ += got.tried;
+        failed_ += got.failed;
+        if (cfg_.train.prefetch && s.epoch_step + 1 < batches_)
+            ahead_ = std::async(std::launch::async,
+                                [this, b = s.epoch_step + 1] { return fetch(b); });
+        G2L_CHECK(tried_ < 50 || failed_ * 10 < tried_ * 9, "training data: ", failed_, " of ",
+                  tried_, " crops were unusable (too few points) — check the sources, "
+                  "sampling.min_points and the depth data");
+        // The step's random draws per sample, seeded by the sample's slot in the global batch
+        // (the same for any number of processes).
+        const uint64_t step_seed = mix(cfg_.seed, 0xABCDEFull + uint64_t(s.step));
+        Rng step_rng(step_seed);
+        std::vector<Rng> sample_rngs;
+        for (int64_t i = lo_; i < hi_; ++i) sample_rngs.emplace_back(mix(step_seed, uint64_t(i)));
+        so_.sample_rngs = &sample_rngs;
+        adam_.zero_grad();
+        // The warm-up phases (docs/config.md, loss.rot_only_epochs): the rotation networks
+        // alone first, then on ground-truth object points, then on the segmentation's.
+        so_.rot_gt_points = s.epoch < cfg_.loss.rot_only_epochs + cfg_.loss.rot_gt_points_epochs;
+        so_.rot_only = s.epoch < cfg_.loss.rot_only_epochs;
+        // BatchNorm and dropout see the global batch through this hook (forward and backward);
+        // each process's loss is weighted by its share of the batch, so the summed gradients
+        // are those of the global batch's mean loss.
+        const nn::DataParallel hook = dist::step_hook(cfg_.train.batch, lo_);
+        const nn::DataParallelGuard hook_on(&hook);
+        const double share = double(hi_ - lo_) / double(cfg_.train.batch);
+        StepLosses L = g2l_step(net_, got.batch, rd_.keypoints, mc_.num_classes,
+                                cfg_.sampling.seg_points, lw_, step_rng,
+                                rd_.sym_keypoints.empty() ? nullptr : &rd_.sym_keypoints, so_);
+        const double loss = L.total.item<double>();
+        if (!std::isfinite(loss)) {
+            std::string objs;
+            for (const auto& p : got.batch) objs += " " + std::to_string(p.obj_id);
+            G2L_CHECK(false, "non-finite loss ", loss, " at step ", s.step, " (epoch ", s.epoch,
+                      "; objects", objs, "; seg ", L.seg, " t ", L.t, " vec ", L.vec, " kp ",
+                      L.kp, " res ", L.res, ")");
+        }
+        (dist::size() > 1 ? nn::mul_scalar(L.total, share) : L.total).backward();
+        return {{"loss", share * loss}, {"seg", share * L.seg}, {"t", share * L.t},
+                {"vec", share * L.vec}, {"kp", share * L.kp}, {"res", share * L.res},
+                {"seg_acc", share * L.seg_accuracy}, {"t_err_mm", share * L.t_error_mm},
+                {"kp_err_mm", share * L.kp_error_mm}, {"sym_frac", share * L.sym_fraction}};
+    }
+
+    double end_epoch(const LoopState& s, json& record) override {
+        const bool val_epoch = !rd_.val.empty() && cfg_.train.val_every > 0 &&
+                               ((s.epoch + 1) % cfg_.train.val_every == 0 ||
+                                s.epoch + 1 == cfg_.train.epochs);
+        double score = -1;
+        if (val_epoch && dist::is_root()) {  // rank 0 validates alone
+            double sum = 0;
+            int n = 0;
+            for (const auto& v : rd_.val) {
+                if (!v.bop) continue;
+                EvalOptions eo;
+                eo.crop = infer::parse_crop(cfg_.sampling.crop, "sampling.crop");
+                eo.radius_scale = cfg_.sampling.radius_scale;
+                eo.crop_points = cfg_.sampling.points;
+                eo.max_object_points = cfg_.sampling.seg_points;
+                eo.max_instances = cfg_.train.max_val_samples;
+                eo.min_visib_fract = v.cfg->min_visib_fract;
+                const EvalReport r = evaluate_gt_boxes(net_, *v.bop, rd_.class_of, rd_.keypoints, eo);
+                record["val"].push_back(json::parse(report_json(r)));
+                // Model selection by what users see: the ADD accuracy modulo the geometric
+                // symmetries (the YCB AUC's 10 cm threshold rewards random rotations).
+                sum += r.average.acc_addsym_10;
+                ++n;
+            }
+            if (n) {
+                score = sum / n;
+                record["val_acc_addsym_10"] = score;
+            }
+        }
+        if (val_epoch) dist::barrier();  // the other processes sleep while rank 0 validates
+        return score;
+    }
+
+    void save(const std::string& path, const LoopState& s) override {
+        // pos: the position in the epoch's visiting order the resumed run continues from.
+        const ResumeState st{s.epoch, s.epoch_step * cfg_.train.batch, s.step, s.epoch_step,
+                             s.epoch_loss, s.best_val, s.seconds};
+        save_training_checkpoint(path, net_, adam_, cfg_, rd_.class_of, rd_.keypoints, st,
+                                 objects_);
+    }
+
+private:
+    static nn::AdamOptions adam_options(const TrainConfig& cfg) {
+        nn::AdamOptions ao;
+        ao.lr = cfg.optim.lr;
+        ao.beta1 = cfg.optim.beta1;
+        ao.beta2 = cfg.optim.beta2;
+        ao.eps = cfg.optim.eps;
+        return ao;
+    }
+
+    struct Fetched {
+        std::vector<PoseSample> batch;
+        int64_t tried = 0, failed = 0;
+    };
+    // Slot i of global batch b is order position b * batch + i; an unusable crop there is
+    // replaced by positions drawn from (seed, slot, attempt). A slot's sample thus depends only
+    // on (epoch, b, i), never on which process makes it or on the other slots: this process
+    // makes slots [lo, hi), and the global batch is the same for any number of processes
+    // (without unusable crops it is the consecutive walk through the order). Only fetch reads
+    // sources_, and at most one call is in flight, so the prefetch thread and the serial path
+    // make the same batches.
+    Fetched fetch(int64_t b) {
+        Fetched f;
+        const uint64_t n = order_.size();
+        for (int64_t i = lo_; i < hi_; ++i) {
+            const uint64_t slot = uint64_t(b * cfg_.train.batch + i);
+            for (int a = 0;; ++a) {
+                G2L_CHECK(a < 64, "training data: 64 crops in a row were unusable (too few "
+                          "points) at epoch ", epoch_, " batch ", b, " slot ", i, " — check the "
+                          "sources, sampling.min_points and the depth data");
+                const uint64_t p = a == 0 ? slot % n
+                                          : mix(mix(cfg_.seed ^ 0x510Full, slot), uint64_t(a)) % n;
+                const Item it = order_[size_t(p)];
+                Rng srng(mix(mix(cfg_.seed, uint64_t(epoch_) * 7919 + uint64_t(it.source)),
+                             uint64_t(it.index)));
+                PoseSample s;
+                ++f.tried;
+                if (sources_.list[size_t(it.source)]->get(it.index, srng, &s)) {
+                    f.batch.push_back(std::move(s));
+                    break;
+                }
+                ++f.failed;
+            }
+        }
+        return f;
+    }
+
+    const TrainConfig& cfg_;
+    RunData& rd_;
+    const int64_t lo_, hi_;  // this process's samples of each global batch
+    nn::G2LConfig mc_;
+    nn::G2LNet net_;
+    nn::Adam adam_;
+    std::unique_ptr<nn::LrSchedule> schedule_;
+    LossWeights lw_;
+    StepOptions so_;
+    std::map<int, nn::ModelObjectInfo> objects_;  // stored so exports know each crop's radius
+    Sources sources_;
+    std::vector<Item> order_;
+    int64_t batches_ = 0, tried_ = 0, failed_ = 0;
+    int epoch_ = 0;
+    std::future<Fetched> ahead_;  // last: destroyed (joined) before what fetch reads
+};
 
 }  // namespace
 
@@ -257,322 +466,54 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
     if (cfg.threads > 0) set_num_threads(cfg.threads);
     G2L_CHECK(parse_device(cfg.device).is_cpu(), "device '", cfg.device,
               "': training runs on the CPU in this version (the CUDA backend is not complete)");
-    // ---- the run directory first: a bad one is found before any data is read ----
+    // The run directory first: a bad one is found before any data is read. Data-parallel
+    // (train/distributed.h): this process trains on samples [lo, hi) of every global batch;
+    // rank 0 alone writes the run directory, logs and prints.
     const std::string run_dir = opt.resume_dir.empty() ? cfg.run_dir : opt.resume_dir;
-    // Data-parallel (train/distributed.h): this process trains on samples [lo, hi) of every
-    // global batch; rank 0 alone writes the run directory, logs and prints.
-    const bool root = dist::is_root();
-    const bool progress = opt.progress && root;
+    const bool progress = opt.progress && dist::is_root();
     const std::pair<int64_t, int64_t> shard = dist::shard(cfg.train.batch);
-    const int64_t lo = shard.first, hi = shard.second;
     const RunDir run(run_dir, !opt.resume_dir.empty(), opt.force, {"steps.jsonl", "epochs.jsonl"},
-                     root);
+                     dist::is_root());
     RunData rd = prepare_data(cfg, progress);
     preflight_images(rd, progress);
     G2L_CHECK(!rd.train.empty(), "data.train: no training source configured");
+    PoseTask task(cfg, rd, shard.first, shard.second);
 
-    nn::G2LConfig mc = model_config(cfg, rd.keypoints.empty() ? 8 : int(rd.keypoints[0].size()));
-    nn::G2LNet net(mc);
-    nn::G2LLrMults mults{cfg.optim.lr_mult.seg, cfg.optim.lr_mult.tnet, cfg.optim.lr_mult.evf,
-                         cfg.optim.lr_mult.rot, cfg.optim.lr_mult.rre};
-    nn::AdamOptions ao;
-    ao.lr = cfg.optim.lr;
-    ao.beta1 = cfg.optim.beta1;
-    ao.beta2 = cfg.optim.beta2;
-    ao.eps = cfg.optim.eps;
-    nn::Adam adam(net.param_groups(mults, cfg.optim.weight_decay), ao);
-    const auto schedule = nn::make_schedule(cfg.schedule.kind, cfg.optim.lr,
-                                            cfg.schedule.step_epochs, cfg.schedule.gamma,
-                                            cfg.train.epochs);
-    LossWeights lw;
-    lw.seg = cfg.loss.seg; lw.t = cfg.loss.t; lw.vec = cfg.loss.vec; lw.kp = cfg.loss.kp;
-    lw.res = cfg.loss.res; lw.t_smooth_l1 = cfg.loss.t_loss == "smooth_l1";
-    StepOptions so;
-    for (const auto& kp : rd.keypoints) so.rot_scale.push_back(float(nn::rotation_scale(mc.rot_unit, kp)));
-    so.centre_noise_mm = cfg.loss.rot_centre_noise_mm;
-    so.centre_with_prediction = cfg.loss.rot_centre == "pred";
-
-    // ---- resume state ----
-    int epoch = 0;
-    int64_t pos = 0, global_step = 0, epoch_batches = 0;
-    double epoch_loss = 0, best_val = -1;
-    double seconds_before = 0;  // training time of earlier sessions of this run
+    LoopState start;
     if (!opt.resume_dir.empty()) {
-        const ResumeState st = load_training_checkpoint(run.path("last.g2l"), net, adam);
-        epoch = st.epoch; pos = st.pos; global_step = st.global_step;
-        epoch_batches = st.epoch_batches; epoch_loss = st.epoch_loss; best_val = st.best_val;
-        seconds_before = st.seconds;
-        G2L_CHECK(epoch < cfg.train.epochs, "--resume '", run_dir, "': the run already finished its ",
-                  cfg.train.epochs, " epochs (", global_step, " steps); to train on, resume with "
-                  "--set train.epochs=N (N > ", cfg.train.epochs, ")");
-        run.trim_log("steps.jsonl", "step", global_step);
-        run.trim_log("epochs.jsonl", "epoch", epoch - 1);
+        start = task.resume(run.path("last.g2l"));
+        G2L_CHECK(start.epoch < cfg.train.epochs, "--resume '", run_dir, "': the run already "
+                  "finished its ", cfg.train.epochs, " epochs (", start.step, " steps); to train "
+                  "on, resume with --set train.epochs=N (N > ", cfg.train.epochs, ")");
+        run.trim_log("steps.jsonl", "step", start.step);  // a killed run logged past it
+        run.trim_log("epochs.jsonl", "epoch", start.epoch - 1);
     }
     run.begin(config_to_json(cfg) + "\n");
-    if (progress && dist::size() > 1) {
-        int64_t params = 0;
-        for (const nn::ParamGroup& g : adam.groups())
-            for (const auto& p : g.params) params += p.second.numel();
+    if (progress && dist::size() > 1)
         std::printf("data-parallel: %d processes, %lld of the %d samples of each batch here; one "
                     "all-reduce of %lld parameters (%.2f MB) per step\n", dist::size(),
-                    (long long)(hi - lo), cfg.train.batch, (long long)params, params * 4e-6);
-    }
-    const bool tty = progress && isatty(fileno(stdout));
+                    (long long)(shard.second - shard.first), cfg.train.batch,
+                    (long long)task.parameters(), task.parameters() * 4e-6);
+
+    LoopOptions lo;
+    lo.epochs = cfg.train.epochs;
+    lo.global_batch = cfg.train.batch;
+    lo.log_every = cfg.train.log_every;
+    lo.keep_every_epochs = cfg.train.checkpoint_every;
+    lo.time_limit_min = cfg.train.time_limit_min;
+    lo.epoch_log = "epochs.jsonl";
+    lo.shown_values = 6;  // loss seg t vec kp res
+    const LoopResult r = run_loop(task, run, lo, opt, start);
 
     TrainSummary sum;
     sum.run_dir = run_dir;
-    const auto t_start = Clock::now();
-    int64_t samples_done = 0;
-    std::map<int, nn::ModelObjectInfo> objects;  // stored so exports know each crop's radius
-    for (const auto& [id, cls] : rd.class_of) {
-        (void)cls;
-        const geom::ModelInfo& mi = rd.maker->info(id);
-        objects[id] = {mi.diameter, mi.symmetric};
-    }
-    auto save = [&](const std::string& name) {
-        if (!root) return;  // the checkpoint holds the global state: one writer
-        const double now = std::chrono::duration<double>(Clock::now() - t_start).count();
-        ResumeState st{epoch, pos, global_step, epoch_batches, epoch_loss, best_val,
-                       seconds_before + now};
-        save_training_checkpoint(run.path(name), net, adam, cfg, rd.class_of,
-                                 rd.keypoints, st, objects);
-    };
-    bool stop = false;
-    std::string stop_reason;  // "signal", "max_steps" or "time_limit"
-    while (epoch < cfg.train.epochs && !stop) {
-        adam.set_lr(schedule->lr_at(epoch));
-        Sources sources = make_train_sources(rd, cfg, epoch);
-        const std::vector<Item> order = epoch_order(sources, rd, cfg, epoch);
-        const int64_t target = cfg.train.samples_per_epoch > 0 ? cfg.train.samples_per_epoch
-                                                               : int64_t(order.size());
-        const int64_t batches_per_epoch = std::max<int64_t>(1, target / cfg.train.batch);
-        net.train();
-        const auto t_epoch = Clock::now();
-        int64_t tried = 0, failed = 0;
-        G2L_CHECK(!order.empty(), "training data: epoch ", epoch, " has no sample to visit");
-        // Slot i of global batch b is order position b * batch + i; an unusable crop there is
-        // replaced by positions drawn from (seed, slot, attempt). A slot's sample thus depends
-        // only on (epoch, b, i), never on which process makes it or on the other slots: this
-        // process makes slots [lo, hi), and the global batch is the same for any number of
-        // processes (without unusable crops it is the consecutive walk through `order`).
-        // Only `fetch` reads `sources`, and at most one call is in flight, so the prefetch
-        // thread and the serial path make the same batches.
-        struct Fetched {
-            std::vector<PoseSample> batch;
-            int64_t tried = 0, failed = 0;
-        };
-        auto fetch = [&](int64_t b) {
-            Fetched f;
-            const uint64_t n = order.size();
-            for (int64_t i = lo; i < hi; ++i) {
-                const uint64_t slot = uint64_t(b * cfg.train.batch + i);
-                for (int a = 0;; ++a) {
-                    G2L_CHECK(a < 64, "training data: 64 crops in a row were unusable (too few "
-                              "points) at epoch ", epoch, " batch ", b, " slot ", i, " — check the "
-                              "sources, sampling.min_points and the depth data");
-                    const uint64_t p = a == 0 ? slot % n : mix(mix(cfg.seed ^ 0x510Full, slot),
-                                                               uint64_t(a)) % n;
-                    const Item it = order[size_t(p)];
-                    Rng srng(mix(mix(cfg.seed, uint64_t(epoch) * 7919 + uint64_t(it.source)),
-                                 uint64_t(it.index)));
-                    PoseSample s;
-                    ++f.tried;
-                    if (sources.list[size_t(it.source)]->get(it.index, srng, &s)) {
-                        f.batch.push_back(std::move(s));
-                        break;
-                    }
-                    ++f.failed;
-                }
-            }
-            return f;
-        };
-        std::future<Fetched> ahead;
-        const bool prefetch = cfg.train.prefetch;
-        if (prefetch && epoch_batches < batches_per_epoch)
-            ahead = std::async(std::launch::async, fetch, epoch_batches);
-        while (epoch_batches < batches_per_epoch) {
-            Fetched got = prefetch ? ahead.get() : fetch(epoch_batches);
-            tried += got.tried;
-            failed += got.failed;
-            std::vector<PoseSample> batch = std::move(got.batch);
-            if (prefetch && epoch_batches + 1 < batches_per_epoch)
-                ahead = std::async(std::launch::async, fetch, epoch_batches + 1);
-            G2L_CHECK(tried < 50 || failed * 10 < tried * 9, "training data: ", failed, " of ",
-                      tried, " crops were unusable (too few points) — check the sources, "
-                      "sampling.min_points and the depth data");
-            // The step's random draws per sample, seeded by the sample's slot in the global
-            // batch (the same for any number of processes).
-            const uint64_t step_seed = mix(cfg.seed, 0xABCDEFull + uint64_t(global_step));
-            Rng step_rng(step_seed);
-            std::vector<Rng> sample_rngs;
-            for (int64_t i = lo; i < hi; ++i) sample_rngs.emplace_back(mix(step_seed, uint64_t(i)));
-            so.sample_rngs = &sample_rngs;
-            const auto t0 = Clock::now();
-            adam.zero_grad();
-            so.rot_gt_points = epoch < cfg.loss.rot_only_epochs + cfg.loss.rot_gt_points_epochs;
-            so.rot_only = epoch < cfg.loss.rot_only_epochs;
-            // BatchNorm and dropout see the global batch through this hook (forward and
-            // backward); each process's loss is weighted by its share of the batch, so the
-            // summed gradients are those of the global batch's mean loss.
-            const nn::DataParallel hook = dist::step_hook(cfg.train.batch, lo);
-            const nn::DataParallelGuard hook_on(&hook);
-            const double share = double(hi - lo) / double(cfg.train.batch);
-            StepLosses L = g2l_step(net, batch, rd.keypoints, mc.num_classes,
-                                    cfg.sampling.seg_points, lw, step_rng,
-                                    rd.sym_keypoints.empty() ? nullptr : &rd.sym_keypoints, so);
-            double loss = L.total.item<double>();
-            if (!std::isfinite(loss)) {
-                std::string objs;
-                for (const auto& s : batch) objs += " " + std::to_string(s.obj_id);
-                G2L_CHECK(false, "non-finite loss ", loss, " at step ", global_step, " (epoch ",
-                          epoch, "; objects", objs, "; seg ", L.seg, " t ", L.t, " vec ", L.vec,
-                          " kp ", L.kp, " res ", L.res, ")");
-            }
-            (dist::size() > 1 ? nn::mul_scalar(L.total, share) : L.total).backward();
-            // One all-reduce: every gradient, the weighted log terms and the stop flags (a
-            // signal or the time limit seen by any process stops all after this step).
-            const double run_s = seconds_before +
-                                 std::chrono::duration<double>(Clock::now() - t_start).count();
-            std::vector<float> extra = {
-                float(share * loss), float(share * L.seg), float(share * L.t),
-                float(share * L.vec), float(share * L.kp), float(share * L.res),
-                float(share * L.seg_accuracy), float(share * L.t_error_mm),
-                float(share * L.kp_error_mm), float(share * L.sym_fraction),
-                opt.stop_flag && opt.stop_flag->load() ? 1.f : 0.f,
-                cfg.train.time_limit_min > 0 && run_s > cfg.train.time_limit_min * 60 ? 1.f : 0.f};
-            const double allreduce_s = dist::allreduce_gradients(adam, extra);
-            if (dist::size() > 1) {
-                loss = extra[0], L.seg = extra[1], L.t = extra[2], L.vec = extra[3];
-                L.kp = extra[4], L.res = extra[5], L.seg_accuracy = extra[6];
-                L.t_error_mm = extra[7], L.kp_error_mm = extra[8], L.sym_fraction = extra[9];
-            }
-            const bool any_signal = extra[10] > 0, any_time_limit = extra[11] > 0;
-            adam.step();
-            const double dt = std::chrono::duration<double>(Clock::now() - t0).count();
-            ++global_step;
-            ++epoch_batches;
-            epoch_loss += loss;
-            samples_done += cfg.train.batch;  // the global batch (every process)
-            pos = epoch_batches * cfg.train.batch;  // the checkpoint's order position
-            sum.last_loss = epoch_loss / double(epoch_batches);
-            if (global_step % std::max(1, cfg.train.log_every) == 0 || epoch_batches == 1) {
-                json j = {{"step", global_step}, {"epoch", epoch}, {"lr", adam.lr()},
-                          {"loss", loss}, {"seg", L.seg}, {"t", L.t}, {"vec", L.vec},
-                          {"kp", L.kp}, {"res", L.res}, {"seg_acc", L.seg_accuracy},
-                          {"t_err_mm", L.t_error_mm}, {"kp_err_mm", L.kp_error_mm},
-                          {"sym_frac", L.sym_fraction},
-                          {"step_s", dt}};
-                if (dist::size() > 1) j["allreduce_s"] = allreduce_s;
-                run.append("steps.jsonl", j);
-            }
-            const double elapsed = std::chrono::duration<double>(Clock::now() - t_start).count();
-            const double sps = samples_done / std::max(1e-9, elapsed);
-            const double remaining_batches = double(batches_per_epoch - epoch_batches) +
-                                             double(cfg.train.epochs - epoch - 1) * batches_per_epoch;
-            double eta = remaining_batches * cfg.train.batch / std::max(1e-9, sps);
-            const double run_seconds = seconds_before + elapsed;  // across resumes
-            if (cfg.train.time_limit_min > 0)  // the run stops at the time limit
-                eta = std::min(eta, std::max(0.0, cfg.train.time_limit_min * 60 - run_seconds));
-            if (tty) {
-                const int width = 24;
-                const int fill = int(width * epoch_batches / batches_per_epoch);
-                std::printf("\repoch %d/%d [%s%s] %lld/%lld loss %.4f (seg %.3f t %.1f kp %.1f) "
-                            "%.2f samples/s ETA %s   ",
-                            epoch + 1, cfg.train.epochs, std::string(size_t(fill), '#').c_str(),
-                            std::string(size_t(width - fill), '.').c_str(),
-                            (long long)epoch_batches, (long long)batches_per_epoch, loss, L.seg,
-                            L.t, L.kp, sps, fmt_time(eta).c_str());
-                std::fflush(stdout);
-            } else if (progress && (global_step % std::max(1, cfg.train.log_every) == 0)) {
-                std::printf("epoch %d/%d step %lld (%lld/%lld) loss %.4f seg %.4f t %.2f vec %.4f "
-                            "kp %.2f res %.2f | %.2f samples/s ETA %s\n",
-                            epoch + 1, cfg.train.epochs, (long long)global_step,
-                            (long long)epoch_batches, (long long)batches_per_epoch, loss, L.seg,
-                            L.t, L.vec, L.kp, L.res, sps, fmt_time(eta).c_str());
-                std::fflush(stdout);
-            }
-            if (opt.max_steps > 0 && global_step >= opt.max_steps) stop_reason = "max_steps";
-            if (any_time_limit) stop_reason = "time_limit";
-            if (any_signal) {
-                stop_reason = "signal";
-                sum.interrupted = true;
-            }
-            stop = !stop_reason.empty();
-            if (stop) break;
-        }
-        if (tty) std::printf("\n");
-        if (stop && epoch_batches < batches_per_epoch) {
-            save("last.g2l");
-            sum.stopped_early = true;
-            break;
-        }
-        // ---- end of epoch: validation, logs, checkpoints ----
-        json ej = {{"epoch", epoch}, {"loss", epoch_batches ? epoch_loss / epoch_batches : 0.0},
-                   {"batches", epoch_batches}, {"lr", adam.lr()},
-                   {"seconds", std::chrono::duration<double>(Clock::now() - t_epoch).count()}};
-        const bool val_epoch = !sum.interrupted && !rd.val.empty() && cfg.train.val_every > 0 &&
-                            ((epoch + 1) % cfg.train.val_every == 0 || epoch + 1 == cfg.train.epochs);
-        const bool do_val = root && val_epoch;  // rank 0 validates alone
-        double val_auc = -1;
-        if (do_val) {
-            double s = 0;
-            int n = 0;
-            for (const auto& v : rd.val) {
-                if (!v.bop) continue;
-                EvalOptions eo;
-                eo.crop = infer::parse_crop(cfg.sampling.crop, "sampling.crop");
-                eo.radius_scale = cfg.sampling.radius_scale;
-                eo.crop_points = cfg.sampling.points;
-                eo.max_object_points = cfg.sampling.seg_points;
-                eo.max_instances = cfg.train.max_val_samples;
-                eo.min_visib_fract = v.cfg->min_visib_fract;
-                const EvalReport r = evaluate_gt_boxes(net, *v.bop, rd.class_of, rd.keypoints, eo);
-                ej["val"].push_back(json::parse(report_json(r)));
-                // Model selection by what users see: the ADD accuracy modulo the geometric
-                // symmetries (the YCB AUC's 10 cm threshold rewards random rotations).
-                s += r.average.acc_addsym_10;
-                ++n;
-            }
-            if (n) {
-                val_auc = s / n;
-                ej["val_acc_addsym_10"] = val_auc;
-            }
-        }
-        if (val_epoch) dist::barrier();  // the other processes sleep while rank 0 validates
-        run.append("epochs.jsonl", ej);
-        if (progress)
-            std::printf("epoch %d/%d done: loss %.4f%s\n", epoch + 1, cfg.train.epochs,
-                    epoch_batches ? epoch_loss / epoch_batches : 0.0,
-                    val_auc >= 0 ? (" val ADD-sym acc@0.1d " + std::to_string(val_auc)).c_str() : "");
-        std::fflush(stdout);
-        ++epoch;
-        pos = 0;
-        epoch_batches = 0;
-        epoch_loss = 0;
-        sum.epochs_done = epoch;
-        if (val_auc > best_val) {
-            best_val = val_auc;
-            save("best.g2l");
-        }
-        if (cfg.train.checkpoint_every > 0 && epoch % cfg.train.checkpoint_every == 0)
-            save("epoch_" + std::to_string(epoch) + ".g2l");
-        save("last.g2l");
-        if (stop) {
-            sum.stopped_early = epoch < cfg.train.epochs;
-            break;
-        }
-    }
-    // A stopped run's log ends at the step its last.g2l holds (the loss records come every
-    // log_every steps): what --resume continues from is in the log, with why it stopped.
-    if (sum.stopped_early)
-        run.append("steps.jsonl", {{"step", global_step}, {"epoch", epoch},
-                                   {"event", "stopped"}, {"reason", stop_reason},
-                                   {"checkpoint", "last.g2l"}});
-    const double elapsed = std::chrono::duration<double>(Clock::now() - t_start).count();
-    sum.steps = global_step;
-    sum.epochs_done = epoch;
-    sum.best_val = best_val;
-    sum.samples_per_s = samples_done / std::max(1e-9, elapsed);
+    sum.steps = r.state.step;
+    sum.epochs_done = r.state.epoch;
+    sum.last_loss = r.last_loss;
+    sum.best_val = r.state.best_val;
+    sum.samples_per_s = r.samples_per_s;
+    sum.stopped_early = r.stopped_early;
+    sum.interrupted = r.interrupted;
     return sum;
 }
 

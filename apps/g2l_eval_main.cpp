@@ -384,10 +384,10 @@ std::optional<std::vector<int>> symmetric_ids(const Job& j) {
     return sym_ids;
 }
 
-/// One evaluated set: a BOP split and its minimum visible fraction.
+/// One evaluated set: a dataset split and its minimum visible fraction.
 struct EvalSet {
     std::string name;
-    g2l::data::BopDataset ds;
+    std::unique_ptr<g2l::data::Dataset> ds;
     double min_visib = 0;
 };
 
@@ -412,26 +412,27 @@ std::vector<EvalSet> open_sets(const Job& j, const g2l::train::LoadedModel& m) {
         o.symmetric_ids = sym_ids;
         // The detector's figures count every instance at least 10% visible (the detector
         // evaluation's rule); GT boxes keep every instance unless told.
-        sets_to_eval.push_back({j.root + "/" + j.split, g2l::data::open_bop(j.root, j.split, o),
+        sets_to_eval.push_back({j.root + "/" + j.split,
+                                std::make_unique<g2l::data::BopDataset>(g2l::data::open_bop(j.root, j.split, o)),
                                 j.min_visib_given || (j.boxes != "det" && j.poses_path.empty())
                                     ? j.min_visib : 0.1});
     } else {
         const auto cfg = g2l::train::load_config(j.config, j.sets);
         for (const auto& s : cfg.data.val) {
-            if (s.type != "bop") continue;
-            g2l::data::BopOptions o;
-            o.symmetric_ids = sym_ids;
-            o.scenes = s.scenes;
-            o.obj_ids = s.objects.empty() ? ids : s.objects;
-            sets_to_eval.push_back({s.root + "/" + s.split, g2l::data::open_bop(s.root, s.split, o),
+            const g2l::train::SourceKind& kind = g2l::train::source_kind(s.type);
+            if (!kind.frames) continue;  // renders have no frames to score
+            g2l::train::SourceOpen what;
+            what.symmetric_ids = sym_ids;
+            what.obj_ids = s.objects.empty() ? ids : s.objects;
+            sets_to_eval.push_back({s.root + "/" + s.split, kind.open(s, what),
                                     j.min_visib_given ? j.min_visib : s.min_visib_fract});
         }
-        G2L_CHECK(!sets_to_eval.empty(), j.config, " has no BOP source in data.val");
+        G2L_CHECK(!sets_to_eval.empty(), j.config, " has no source of annotated frames in data.val");
     }
     // A split without a frame would print a table of 0.0 % and exit 0: a wrong root or
     // split name must be an error.
     for (const EvalSet& s : sets_to_eval)
-        G2L_CHECK(!s.ds.frames().empty(), "'", s.name, "' has no frame (its scene_gt.json files list no image): check "
+        G2L_CHECK(!s.ds->frames().empty(), "'", s.name, "' has no frame (its scene_gt.json files list no image): check "
                   "--root and --split");
     return sets_to_eval;
 }
@@ -452,7 +453,7 @@ g2l::eval::EvalOptions eval_options(const Job& j, const g2l::train::LoadedModel&
     eo.refine = g2l::infer::parse_refine(j.refine, "--refine");
     if (eo.min_visib_fract > 0) {
         bool annotated = false;
-        for (const auto& f : s.ds.frames())
+        for (const auto& f : s.ds->frames())
             for (const auto& inst : f.instances) annotated |= inst.visib_fract >= 0;
         if (!annotated)
             std::fprintf(stderr, "g2l_eval: note: min visible fraction %g has no effect on "
@@ -576,13 +577,13 @@ int run_eval(const Job& j) {
         std::vector<g2l::data::Detection> det_boxes;
         if (j.boxes == "det") {  // the detector on every frame (what its input needs), timed
             // Peaks per class: as many as the hypotheses road may try of one object.
-            det_boxes = g2l::eval::run_detector_on(*det, s.ds, 0.05f, j.det_mirror,
+            det_boxes = g2l::eval::run_detector_on(*det, *s.ds, 0.05f, j.det_mirror,
                                                    std::max(3, j.hyp_opt.max_per_object));
             eo.detections = &det_boxes;
         }
         std::vector<g2l::eval::InstanceResult> inst;
         std::vector<g2l::eval::HypothesisRecord> hyps;
-        const auto r = g2l::eval::evaluate_instances(*m.net, s.ds, m.class_of, m.keypoints, eo,
+        const auto r = g2l::eval::evaluate_instances(*m.net, *s.ds, m.class_of, m.keypoints, eo,
                                                       &inst, &hyps);
         std::printf("## %s (%s boxes, %s crop)\n\n%s\n", s.name.c_str(),
                     !j.poses_path.empty() ? ("poses " + j.poses_path).c_str()
@@ -590,7 +591,7 @@ int run_eval(const Job& j) {
                     : j.boxes == "det"   ? ("detector " + j.detector_path).c_str()
                                          : ("detection file " + j.detections_path).c_str(),
                     m.crop.c_str(), g2l::eval::report_markdown(r).c_str());
-        write_outputs(s.ds, inst, hyps, out.csv.is_open() ? &out.csv : nullptr,
+        write_outputs(*s.ds, inst, hyps, out.csv.is_open() ? &out.csv : nullptr,
                       out.inst.is_open() ? &out.inst : nullptr, j.vis_dir, s.name);
         out.hypotheses(hyps, s.name);
         if (i == 0) {  // the first set's fit and curve (a config may have more)

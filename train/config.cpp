@@ -84,7 +84,6 @@ private:
     json& j_;
 };
 
-const Choices kSourceTypes{"bop", "synthetic"};
 const Choices kCrops{"sphere", "frustum", "slab"};
 const Choices kKeypoints{"bbx8", "fps4", "fps8", "fps12"};
 const Choices kTLosses{"mse", "smooth_l1"};
@@ -95,8 +94,10 @@ const Choices kSchedules{"step", "official", "constant"};
 template <class IO>
 void visit_source(IO& io, SourceConfig& s) {
     io.require("type");
-    io.choice("type", s.type, kSourceTypes);
-    if (s.type == "bop") {
+    std::string type = source_kind(s.type).name;
+    io.choice("type", type, source_type_names());
+    s.type = source_type_named(type).value_or(s.type);  // choice() refused other names
+    if (source_kind(s.type).frames) {
         io.text("root", s.root);
         io.text("split", s.split);
         io.texts("scenes", s.scenes);
@@ -294,10 +295,11 @@ void finalize(TrainConfig& c, const std::string& source, const std::string& base
     auto resolve = [&](std::vector<SourceConfig>& list, const char* which) {
         for (size_t i = 0; i < list.size(); ++i) {
             SourceConfig& s = list[i];
-            std::string& p = s.type == "bop" ? s.root : s.models_root;
-            const char* key = s.type == "bop" ? "root" : "models_root";
+            const SourceKind& kind = source_kind(s.type);
+            std::string& p = kind.frames ? s.root : s.models_root;
+            const char* key = kind.frames ? "root" : "models_root";
             G2L_CHECK(!p.empty(), source, ": 'data.", which, "[", i, "].", key,
-                      "' must be set for a \"", s.type, "\" source");
+                      "' must be set for a \"", kind.name, "\" source");
             try {
                 p = resolve_config_path(p, base_dir);
             } catch (const Error& e) {
@@ -314,16 +316,18 @@ void check_sources(const TrainConfig& c, const std::vector<SourceConfig>& list,
     for (size_t i = 0; i < list.size(); ++i) {
         const SourceConfig& s = list[i];
         const std::string p = cat("data.", which, "[", i, "]");
-        G2L_CHECK(s.type == "bop" || s.type == "synthetic", where, ": '", p,
-                  ".type' must be \"bop\" or \"synthetic\", got \"", s.type, "\"");
         for (size_t k = 0; k < s.objects.size(); ++k) {
             const int id = s.objects[k];
             G2L_CHECK(std::count(c.data.object_ids.begin(), c.data.object_ids.end(), id) == 1,
                       where, ": '", p, ".objects[", k, "]' = ", id,
                       " is not in data.object_ids (every object needs a class)");
         }
-        if (s.type == "bop") {
+        const SourceKind& kind = source_kind(s.type);
+        if (kind.frames) {
             G2L_CHECK(!s.root.empty(), where, ": '", p, ".root' must be set");
+            G2L_CHECK(s.type != SourceType::linemod_preprocessed || (s.scenes.empty() && !s.models_eval),
+                      where, ": '", p, "': a linemod_preprocessed source reads ", kind.keys,
+                      " (its folders are its objects: set '", p, ".objects'), not scenes or models_eval");
             G2L_CHECK(!s.split.empty(), where, ": '", p, ".split' must not be empty");
             G2L_CHECK(s.min_visib_fract >= 0 && s.min_visib_fract <= 1, where, ": '", p,
                       ".min_visib_fract' must be in [0, 1], got ", s.min_visib_fract);
@@ -389,8 +393,8 @@ std::string resolve_config_path(const std::string& value, const std::string& bas
 
 data::SceneConfig source_scene(const SourceConfig& src, const std::string& where,
                                const std::string& key_path) {
-    G2L_CHECK(src.type == "synthetic", where, ": not a synthetic source (type \"", src.type,
-              "\")");
+    G2L_CHECK(src.type == SourceType::synthetic, where, ": not a synthetic source (type \"",
+              source_kind(src.type).name, "\")");
     return data::parse_scene_config(src.scene, where, key_path);
 }
 

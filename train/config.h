@@ -11,15 +11,18 @@
 #include <vector>
 
 #include "data/scene.h"
+#include "train/source_types.h"
 
 namespace g2l::train {
 
-/// One source of training or validation samples: a BOP dataset split ("bop") or synthetic
-/// renders of a BOP dataset's models ("synthetic"). Only the fields of `type` are read/written.
+/// One source of training or validation samples: a BOP dataset split ("bop"), synthetic
+/// renders of a BOP dataset's models ("synthetic") or a Linemod_preprocessed folder
+/// ("linemod_preprocessed"); the kinds and their readers: train/source_types.h. Only the
+/// fields of `type` are read/written.
 struct SourceConfig {
-    std::string type = "bop";           ///< "bop" | "synthetic"
+    SourceType type = SourceType::bop;
     std::vector<int> objects;           ///< object ids used; empty = every id of data.object_ids
-    // --- type "bop" ---
+    // --- annotated frames: bop, linemod_preprocessed ---
     std::string root;                   ///< BOP dataset root (resolved, see resolve_config_path)
     std::string split = "train_real";   ///< split folder under root
     std::vector<std::string> scenes;    ///< scene folders ("000000"); empty = all

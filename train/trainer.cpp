@@ -50,7 +50,7 @@ uint64_t mix(uint64_t a, uint64_t b) { return mix_seed(a, b); }
 
 // Everything the run reads: datasets, meshes, the sample maker, keypoints.
 struct RunData {
-    std::vector<std::unique_ptr<data::BopDataset>> datasets;  // owns meshes of BOP sources
+    std::vector<std::unique_ptr<data::Dataset>> datasets;  // owns the sources' meshes
     std::map<int, train::SampleModel> models;                 // obj_id -> mesh + info
     std::map<int, int> class_of;                              // obj_id -> class index
     KeypointTable keypoints;                                  // class index -> K keypoints
@@ -58,7 +58,7 @@ struct RunData {
     std::unique_ptr<SampleMaker> maker;
     struct Src {
         const SourceConfig* cfg;
-        data::BopDataset* bop = nullptr;  // type bop
+        data::Dataset* frames = nullptr;  // a source of annotated frames (source_kind().frames)
         std::vector<data::SceneModel> scene_models;  // type synthetic
         data::SceneConfig scene;
     };
@@ -67,20 +67,15 @@ struct RunData {
 
 // `extra_ids`: models loaded besides the source's objects (a synthetic scene's distractors,
 // which need no class).
-data::BopDataset* open_source_dataset(RunData& rd, const TrainConfig& cfg, const SourceConfig& s,
-                                     bool models_only, const std::vector<int>& extra_ids = {}) {
-    data::BopOptions o;
-    o.scenes = s.scenes;
-    o.obj_ids = source_objects(cfg, s);
+data::Dataset* open_source_dataset(RunData& rd, const TrainConfig& cfg, const SourceConfig& s,
+                                   bool models_only, const std::vector<int>& extra_ids = {}) {
+    SourceOpen what;
+    what.obj_ids = source_objects(cfg, s);
     for (const int id : extra_ids)
-        if (std::find(o.obj_ids.begin(), o.obj_ids.end(), id) == o.obj_ids.end())
-            o.obj_ids.push_back(id);
-    o.models_eval = s.models_eval;
-    const std::string root = s.type == "bop" ? s.root : s.models_root;
-    const std::string split = models_only ? "" : s.split;
-    rd.datasets.push_back(std::make_unique<data::BopDataset>(
-        models_only ? data::BopDataset(data::open_bop_models(root, o), "", {})
-                    : data::open_bop(root, split, o)));
+        if (std::find(what.obj_ids.begin(), what.obj_ids.end(), id) == what.obj_ids.end())
+            what.obj_ids.push_back(id);
+    what.models_only = models_only;
+    rd.datasets.push_back(source_kind(s.type).open(s, what));
     return rd.datasets.back().get();
 }
 
@@ -100,8 +95,8 @@ void preflight_images(const RunData& rd, bool verbose) {
     for (const auto* list : {&rd.val, &rd.train}) {
         const bool full = list == &rd.val;
         for (const auto& src : *list) {
-            if (!src.bop) continue;
-            for (const auto& f : src.bop->frames()) {
+            if (!src.frames) continue;
+            for (const auto& f : src.frames->frames()) {
                 if (f.depth_path.empty()) continue;
                 int w = 0, h = 0;
                 if (full) {
@@ -128,16 +123,16 @@ RunData prepare_data(const TrainConfig& cfg, bool verbose) {
     auto add = [&](const SourceConfig& s, std::vector<RunData::Src>& list) {
         RunData::Src src;
         src.cfg = &s;
-        if (s.type == "bop") {
-            src.bop = open_source_dataset(rd, cfg, s, false);
-            add_models(rd, *src.bop);
+        if (source_kind(s.type).frames) {
+            src.frames = open_source_dataset(rd, cfg, s, false);
+            add_models(rd, *src.frames);
         } else {
             // The scene's distractors are rendered but never annotated: their meshes load
             // with the source's objects, and the targets stay the source's objects.
             src.scene = source_scene(s, "data.train/val synthetic source");
             if (src.scene.target_obj_ids.empty())
                 src.scene.target_obj_ids = source_objects(cfg, s);
-            data::BopDataset* ds =
+            data::Dataset* ds =
                 open_source_dataset(rd, cfg, s, true, src.scene.distractor_obj_ids);
             add_models(rd, *ds);
             for (const auto& [id, om] : ds->models())
@@ -203,10 +198,10 @@ struct Sources {
 Sources make_train_sources(const RunData& rd, const TrainConfig& cfg, int epoch) {
     Sources s;
     for (const auto& src : rd.train) {
-        if (src.bop) {
+        if (src.frames) {
             // The stricter of the source's and the sampling section's visibility floors.
             s.list.push_back(std::make_unique<BopSource>(
-                *src.bop, *rd.maker,
+                *src.frames, *rd.maker,
                 std::max(src.cfg->min_visib_fract, cfg.sampling.min_visib_fract),
                 src.cfg->max_frames));
         } else {
@@ -224,7 +219,7 @@ std::vector<Item> epoch_order(const Sources& s, const RunData& rd, const TrainCo
     std::vector<std::vector<Item>> blocks;
     for (size_t i = 0; i < s.list.size(); ++i) {
         const int64_t n = s.list[i]->size();
-        const int64_t per = rd.train[i].bop ? 1 : std::max(1, rd.train[i].scene.targets_max);
+        const int64_t per = rd.train[i].frames ? 1 : std::max(1, rd.train[i].scene.targets_max);
         for (int64_t b = 0; b < n; b += per) {
             std::vector<Item> blk;
             for (int64_t k = b; k < std::min(n, b + per); ++k) blk.push_back({int(i), k});
@@ -364,7 +359,7 @@ public:
             double sum = 0;
             int n = 0;
             for (const auto& v : rd_.val) {
-                if (!v.bop) continue;
+                if (!v.frames) continue;
                 EvalOptions eo;
                 eo.crop = infer::parse_crop(cfg_.sampling.crop, "sampling.crop");
                 eo.radius_scale = cfg_.sampling.radius_scale;
@@ -372,7 +367,7 @@ public:
                 eo.max_object_points = cfg_.sampling.seg_points;
                 eo.max_instances = cfg_.train.max_val_samples;
                 eo.min_visib_fract = v.cfg->min_visib_fract;
-                const EvalReport r = evaluate_gt_boxes(net_, *v.bop, rd_.class_of, rd_.keypoints, eo);
+                const EvalReport r = evaluate_gt_boxes(net_, *v.frames, rd_.class_of, rd_.keypoints, eo);
                 record["val"].push_back(json::parse(report_json(r)));
                 // Model selection by what users see: the ADD accuracy modulo the geometric
                 // symmetries (the YCB AUC's 10 cm threshold rewards random rotations).

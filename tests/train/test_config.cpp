@@ -114,7 +114,7 @@ TEST_CASE("config: defaults are the paper's values", "[config]") {
     REQUIRE(c.data.train.size() == 1);
     CHECK(c.data.val.empty());
     const SourceConfig& s = c.data.train[0];
-    CHECK(s.type == "bop");
+    CHECK(s.type == train::SourceType::bop);
     CHECK(s.root == mini_root());
     CHECK(s.split == "train_real");
     CHECK(s.scenes.empty());
@@ -202,7 +202,7 @@ TEST_CASE("config: every key round-trips through config_to_json", "[config]") {
     CHECK(b.min_visib_fract == 0.25);
     CHECK(b.max_frames == 7);
     const SourceConfig& s = c.data.train[1];
-    CHECK(s.type == "synthetic");
+    CHECK(s.type == train::SourceType::synthetic);
     CHECK(s.models_root == mini_root());
     CHECK(s.objects == std::vector<int>{14});
     CHECK(s.frames == 33);
@@ -375,7 +375,7 @@ TEST_CASE("config: bad enum values list the allowed ones", "[config]") {
     j = minimal();
     j["data"]["train"][0]["type"] = "lmdb";
     REQUIRE_THROWS_WITH(parse(j), Contains("'data.train[0].type' must be one of \"bop\", "
-                                           "\"synthetic\", got \"lmdb\""));
+                                           "\"synthetic\", \"linemod_preprocessed\", got \"lmdb\""));
     j = minimal();
     j["device"] = "gpu";
     REQUIRE_THROWS_WITH(parse(j), Contains("'device' must be \"cpu\", \"cuda\" or \"cuda:N\", "
@@ -622,7 +622,7 @@ TEST_CASE("config: every shipped config parses", "[config]") {
         const TrainConfig& c = cfg.at(name);
         REQUIRE(c.data.train.size() == 1);
         const SourceConfig& src = c.data.train[0];
-        CHECK(src.type == "synthetic");
+        CHECK(src.type == train::SourceType::synthetic);
         CHECK(src.models_root == "/g2l_shared_for_test/lmo");
         CHECK(src.scene.find("distractor_obj_ids") != std::string::npos);
     }
@@ -647,7 +647,7 @@ TEST_CASE("config: every shipped config parses", "[config]") {
     CHECK(s.loss.symmetric_targets);
     CHECK(s.data.train[0].scene.find("\"resting\"") != std::string::npos);
     REQUIRE(s.data.train.size() == 1);
-    CHECK(s.data.train[0].type == "synthetic");
+    CHECK(s.data.train[0].type == train::SourceType::synthetic);
     CHECK(s.data.train[0].models_root == "/g2l_shared_for_test/ycbv");
     REQUIRE(s.data.val.size() == 1);
     CHECK(s.data.val[0].root == "/g2l_shared_for_test/ycbv");

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <regex>
 #include <sstream>
@@ -21,6 +22,7 @@
 #include "data/render_primitives.h"
 #include "data/scene.h"
 #include "geometry/mesh_io.h"
+#include "geometry/model_info.h"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -72,8 +74,12 @@ std::vector<LoadedModel> load_models(const std::vector<std::string>& args) {
         const int id = by_name > 0 ? by_name : int(i) + 1;
         // The symmetries the models_info.json beside the mesh declares travel with it.
         const std::string info = (fs::path(files[i]).parent_path() / "models_info.json").string();
-        out.push_back({id, std::make_unique<geom::Mesh>(geom::load_mesh(files[i])),
-                       data::read_symmetries(info, id)});
+        auto mesh = std::make_unique<geom::Mesh>(geom::load_mesh(files[i]));
+        // Millimetres, and the diameter the models_info.json beside it declares (if any).
+        std::map<int, geom::ModelInfo> declared;
+        if (fs::exists(info)) declared = geom::load_models_info_json(info);
+        geom::check_mesh_units(*mesh, declared.count(id) ? &declared.at(id) : nullptr, "'" + info + "'");
+        out.push_back({id, std::move(mesh), data::read_symmetries(info, id)});
     }
     return out;
 }

@@ -13,6 +13,7 @@
 
 #include "core/error.h"
 #include "geometry/mesh_io.h"
+#include "geometry/model_info.h"
 
 namespace fs = std::filesystem;
 
@@ -204,7 +205,12 @@ const geom::Mesh& Dataset::load_model_mesh(int obj_id) const {
     auto it = cache_->meshes.find(obj_id);
     if (it == cache_->meshes.end()) {
         // Loading under the lock keeps one copy per object; meshes load once per process.
-        it = cache_->meshes.emplace(obj_id, geom::load_mesh(m.mesh_path)).first;
+        // Meshes and models_info come from users: a mesh in metres or a diameter off by 10
+        // would move every metric silently (ADD thresholds are 10 % of the diameter).
+        geom::Mesh mesh = geom::load_mesh(m.mesh_path);
+        geom::check_mesh_units(mesh, &m.info, cat("the models_info of dataset '", root_,
+                                                  "' (object ", obj_id, ")"));
+        it = cache_->meshes.emplace(obj_id, std::move(mesh)).first;
     }
     return it->second;
 }

@@ -120,6 +120,39 @@ ModelInfo compute_model_info(const Points& vertices) {
     return info;
 }
 
+namespace {
+
+// What a ratio declared / measured diameter says about units.
+std::string unit_hint(double r) {
+    if (r > 300 && r < 3000)
+        return "; the mesh looks like metres: scale its vertices by 1000 (meshes are in millimetres)";
+    if (r > 1.0 / 3000 && r < 1.0 / 300)
+        return "; the mesh looks like micrometres or the diameter like metres: meshes and "
+               "diameters are in millimetres";
+    if ((r > 5 && r < 20) || (r > 0.05 && r < 0.2))
+        return "; a factor of 10 is a centimetre / millimetre slip in the mesh or the models_info";
+    return "; fix the models_info entry (g2l_render writes one measured from the meshes)";
+}
+
+}  // namespace
+
+ModelInfo check_mesh_units(const Mesh& mesh, const ModelInfo* declared,
+                           const std::string& declared_in) {
+    G2L_CHECK(mesh.vertices.rows() > 0, "mesh '", mesh.path, "' has no vertices");
+    const ModelInfo measured = compute_model_info(mesh.vertices);
+    if (declared) {
+        const double r = declared->diameter / measured.diameter;
+        G2L_CHECK(std::abs(r - 1) <= 0.05, "mesh '", mesh.path, "' measures ", measured.diameter,
+                  " mm across (its two farthest vertices) but ", declared_in, " declares diameter ",
+                  declared->diameter, " mm (", r, " x)", unit_hint(r));
+    } else {
+        G2L_CHECK(measured.diameter >= 10, "mesh '", mesh.path, "' is only ", measured.diameter,
+                  " units across: meshes are in millimetres, and this one looks like metres — "
+                  "scale its vertices by 1000");
+    }
+    return measured;
+}
+
 std::map<int, ModelInfo> load_models_info_json(const std::string& path) {
     std::ifstream f(path, std::ios::binary);
     G2L_CHECK(f.good(), "load_models_info_json: cannot open '", path, "'");

@@ -157,9 +157,16 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
             const std::string file = options.meshes + name;
             if (!std::filesystem::exists(file, ec)) continue;
             const geom::Mesh mesh = geom::load_mesh(file);
-            m.pipeline->add_mesh(id, mesh,
-                                 infos.count(id) ? infos.at(id)
-                                                 : geom::compute_model_info(mesh.vertices));
+            const geom::ModelInfo* declared = infos.count(id) ? &infos.at(id) : nullptr;
+            const geom::ModelInfo measured =
+                geom::check_mesh_units(mesh, declared, "'" + options.models_info + "'");
+            // The model's stored diameter (its crops' radius) must describe this mesh too.
+            const double stored = m.model.objects.at(id).diameter;
+            G2L_CHECK(std::abs(stored / measured.diameter - 1) <= 0.05, "PoseEstimator: mesh '",
+                      file, "' measures ", measured.diameter, " mm across but the model '",
+                      model_path, "' was trained on object ", id, " with diameter ", stored,
+                      " mm: the meshes folder holds another object, or a mesh in other units");
+            m.pipeline->add_mesh(id, mesh, declared ? *declared : measured);
             ++found;
         }
         G2L_CHECK(found > 0, "PoseEstimator: EstimatorOptions::meshes '", options.meshes,

@@ -505,3 +505,20 @@ TEST_CASE("camera files: the one reader of BOP camera.json and scene_camera.json
     REQUIRE_THROWS_WITH(g2l::data::load_camera_file("/nonexistent/cam.json"),
                         Contains("camera file not found: '/nonexistent/cam.json'"));
 }
+
+TEST_CASE("a models_info diameter that disagrees with the mesh is an error naming both",
+          "[data]") {
+    const std::string root = copy_mini("bop_units");
+    const std::string info = root + "/models/models_info.json";
+    json j = read_json_file(info);
+    j["8"]["diameter"] = 1140.53345;  // x10: a unit slip
+    write_text(info, j.dump(1));
+    BopOptions o;
+    const Dataset ds = open_bop_models(root, o);
+    REQUIRE_THROWS_WITH(ds.load_model_mesh(8),
+                        Contains("obj_000008.ply' measures 114.05") &&
+                            Contains("models_info of dataset '" + root + "' (object 8) declares "
+                                     "diameter 1140.5") &&
+                            Contains("centimetre / millimetre slip"));
+    REQUIRE(ds.load_model_mesh(14).vertices.rows() > 0);  // its entry is right
+}

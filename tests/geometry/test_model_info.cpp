@@ -174,3 +174,33 @@ TEST_CASE("real models_info files load and the computed YCB-V diameter matches",
     CHECK((info.min - ycb.at(1).min).cwiseAbs().maxCoeff() < 0.01);
     CHECK((info.size - ycb.at(1).size).cwiseAbs().maxCoeff() < 0.01);
 }
+
+TEST_CASE("check_mesh_units: metres and wrong diameters are refused with the fix", "[geometry]") {
+    const Mesh mm = load_mesh(g2l::testing::fixture_dir() + "/ycbv_mini/models/obj_000008.ply");
+    ModelInfo declared;
+    declared.diameter = 114.053345;  // the fixture's models_info.json
+    // Millimetres and the right diameter: the measured info comes back.
+    const ModelInfo ok = check_mesh_units(mm, &declared, "models_info.json");
+    REQUIRE(ok.diameter == Approx(114.053345).epsilon(1e-6));
+    REQUIRE(check_mesh_units(mm, nullptr).diameter == Approx(114.053345).epsilon(1e-6));
+    declared.diameter = 114.053345 * 1.04;  // within 5 %
+    REQUIRE_NOTHROW(check_mesh_units(mm, &declared, "models_info.json"));
+    // The same mesh in metres: refused on its own, and against the models_info entry.
+    Mesh m = mm;
+    m.vertices /= 1000.f;
+    REQUIRE_THROWS_WITH(check_mesh_units(m, nullptr),
+                        Contains("obj_000008.ply' is only 0.114") && Contains("looks like metres") &&
+                            Contains("scale its vertices by 1000"));
+    declared.diameter = 114.053345;
+    REQUIRE_THROWS_WITH(check_mesh_units(m, &declared, "'x/models_info.json'"),
+                        Contains("measures 0.114") && Contains("'x/models_info.json' declares diameter 114.05") &&
+                            Contains("looks like metres"));
+    // A diameter 10x off (cm / mm) or 6 % off.
+    declared.diameter = 11.4053345;
+    REQUIRE_THROWS_WITH(check_mesh_units(mm, &declared, "models_info.json"),
+                        Contains("centimetre / millimetre slip"));
+    declared.diameter = 114.053345 * 1.06;
+    REQUIRE_THROWS_WITH(check_mesh_units(mm, &declared, "models_info.json"),
+                        Contains("fix the models_info entry"));
+    REQUIRE_THROWS_WITH(check_mesh_units(Mesh{}, nullptr), Contains("has no vertices"));
+}

@@ -19,6 +19,7 @@
 #include "g2l/pose_estimator.h"
 #include "geometry/camera.h"
 #include "geometry/crop.h"
+#include "geometry/mesh_io.h"
 #include "nn/models/detector.h"
 #include "nn/models/g2l_io.h"
 #include "nn/models/g2l_pose.h"
@@ -628,4 +629,29 @@ TEST_CASE("PoseEstimator: hypotheses verified against the depth on the real fixt
     bad = o;
     bad.min_pose_score = 1.5;
     CHECK_THROWS_WITH(g2l::PoseEstimator(kModel, bad), Contains("min_pose_score must be in [0, 1]"));
+}
+
+TEST_CASE("PoseEstimator: meshes in metres, or of another object, are refused with the fix",
+          "[infer]") {
+    const std::string dir = g2l::testing::temp_dir("estimator_units");
+    const std::string mini = g2l::testing::fixture_dir() + "/ycbv_mini/models";
+    g2l::geom::Mesh m = g2l::geom::load_mesh(mini + "/obj_000008.ply");
+    g2l::EstimatorOptions opt;
+    opt.refine = g2l::Refinement::turns;
+    opt.meshes = dir;
+    // Object 8's mesh in metres.
+    m.vertices /= 1000.f;
+    g2l::geom::save_ply(dir + "/obj_000008.ply", m);
+    REQUIRE_THROWS_WITH(g2l::PoseEstimator(kModel, opt),
+                        Contains("obj_000008.ply' is only 0.114") && Contains("looks like metres"));
+    // The same with the dataset's models_info.json: measured against its diameter.
+    opt.models_info = mini + "/models_info.json";
+    REQUIRE_THROWS_WITH(g2l::PoseEstimator(kModel, opt),
+                        Contains("declares diameter 114.05") && Contains("looks like metres"));
+    // Millimetres, but object 14's mesh under object 8's name: the model was trained on 8.
+    opt.models_info.clear();
+    std::filesystem::copy_file(mini + "/obj_000014.ply", dir + "/obj_000008.ply",
+                               std::filesystem::copy_options::overwrite_existing);
+    REQUIRE_THROWS_WITH(g2l::PoseEstimator(kModel, opt),
+                        Contains("measures 124.9") && Contains("trained on object 8 with diameter 114.05"));
 }

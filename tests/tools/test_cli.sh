@@ -126,6 +126,16 @@ expect 0 "$B/apps/g2l_render" --models "$M" --out "$T/r" --frames 2 --threads 1
 expect 1 "$B/apps/g2l_render" --models "$M" --out "$T/r" --frames 1 --threads 1
 has "already holds a rendered scene"
 expect 0 "$B/apps/g2l_render" --models "$M" --out "$T/r" --frames 1 --threads 1 --force
+# Units: a models_info.json beside the meshes whose diameter is 10x the mesh's is refused,
+# naming both and the slip.
+mkdir -p "$T/units"
+cp "$M"/obj_*.ply "$T/units/"
+sed 's/"diameter": 114.053345/"diameter": 1140.53345/' "$M/models_info.json" > "$T/units/models_info.json"
+grep -q 1140.53345 "$T/units/models_info.json" || fail "test set-up: no wrong diameter written"
+expect 1 "$B/apps/g2l_render" --models "$T/units" --out "$T/runits" --frames 1 --threads 1
+has "obj_000008.ply' measures 114.05"
+has "declares diameter 1140.5"
+has "centimetre / millimetre slip"
 # An object the meshes do not have is named with the option, not the scene generator.
 # Symmetries travel with the meshes: a models_info.json beside them that declares object 14
 # symmetric gives a rendered models_info.json that still does, and g2l_eval marks it (sym)

@@ -219,7 +219,21 @@ g2l::EstimatorOptions estimator_options(const Job& j) {
 bool rejected(const g2l::ObjectPose& p) {
     return p.status == g2l::PoseStatus::rejected_duplicate ||
            p.status == g2l::PoseStatus::rejected_overlap ||
-           p.status == g2l::PoseStatus::rejected_low_score;
+           p.status == g2l::PoseStatus::rejected_low_score ||
+           p.status == g2l::PoseStatus::rejected_implausible_distance;
+}
+
+/// A pose whose distance contradicts its box says the depth scale or the camera is likely
+/// wrong: said on stderr (the first three, then a count at the end), never silently.
+void warn_implausible(const std::vector<g2l::ObjectPose>& poses, const char* image, int* count) {
+    for (const g2l::ObjectPose& p : poses) {
+        if (p.status != g2l::PoseStatus::rejected_implausible_distance) continue;
+        if ((*count)++ < 3)
+            std::fprintf(stderr, "g2l_infer: warning: image %s: object %d's pose at z = %.0f mm "
+                                 "disagrees with its %d x %d px box (status \"implausible "
+                                 "distance\"): check the camera's depth_scale and intrinsics\n",
+                         image, p.obj_id, p.t[2], p.bbox[2], p.bbox[3]);
+    }
 }
 
 /// One frame's images and camera, loaded.
@@ -473,6 +487,8 @@ int run_frame(Job& j, const std::vector<g2l::data::Detection>& dets) {
         j.detector.empty() ? est.estimate(f.view(), boxes) : est.estimate(f.view());
     const double sec =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    int implausible = 0;
+    warn_implausible(poses, std::to_string(std::max(0, j.image_id)).c_str(), &implausible);
     const bool refining = !opt.meshes.empty() && opt.refine != g2l::Refinement::none;
     if (!j.vis.empty()) draw_poses(j.vis, f, poses, est, object_names(j.meshes));
     std::ofstream csv = open_csv(j.bop_csv);
@@ -519,7 +535,7 @@ int run_sequence(Job& j, const std::vector<g2l::data::Detection>& dets) {
     std::ofstream csv = open_csv(j.bop_csv);
     if (!j.vis.empty()) j.names = object_names(j.meshes);
     const std::string camera_source = j.scene.empty() ? j.camera : j.scene + "/scene_camera.json";
-    int failed = 0, detected = 0;
+    int failed = 0, detected = 0, implausible = 0;
     double total_ms = 0;
     const auto start = std::chrono::steady_clock::now();
     const size_t progress_every = std::max<size_t>(1, frames.size() / 50);
@@ -540,6 +556,7 @@ int run_sequence(Job& j, const std::vector<g2l::data::Detection>& dets) {
             const double ms = std::chrono::duration<double, std::milli>(
                                   std::chrono::steady_clock::now() - t0).count();
             total_ms += ms;
+            warn_implausible(poses, id, &implausible);
             const bool det = tracker ? tracker->detected() : true;
             detected += det;
             json out = frame_json(j, f, poses, boxes, refining);
@@ -571,6 +588,9 @@ int run_sequence(Job& j, const std::vector<g2l::data::Detection>& dets) {
         }
     }
     close_csv(csv, j.bop_csv);
+    if (implausible > 3)
+        std::fprintf(stderr, "g2l_infer: warning: %d poses in all had an implausible distance "
+                             "(depth scale or camera)\n", implausible);
     const int good = int(frames.size()) - failed;
     if (!j.quiet)
         std::fprintf(stderr, "g2l_infer: %d frames, mean %.1f ms per frame (poses only)%s\n", good,

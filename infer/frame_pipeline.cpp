@@ -260,8 +260,31 @@ const char* to_string(Verdict v) {
         case Verdict::duplicate: return "duplicate";
         case Verdict::overlap: return "overlap";
         case Verdict::covered: return "covered";
+        case Verdict::implausible: return "implausible distance";
     }
     return "unknown verdict";
+}
+
+std::string implausible_distance(const geom::Pose& pose, const geom::Box2i& box,
+                                 const geom::Intrinsics& K, double diameter) {
+    const double z = pose.t.z();
+    if (!(z >= 50 && z <= 20000))
+        return cat("the pose lies at z = ", z, " mm, outside any RGB-D sensor's 50 mm - 20 m");
+    const double f = 0.5 * (K.fx + K.fy);
+    const double largest = f * diameter / std::max(1.0, z - 0.5 * diameter);  // px
+    const double nominal = f * diameter / z;
+    const int side = std::max(box.w, box.h);
+    if (side > 2 * largest)
+        return cat("its ", side, " px box is more than twice the ", int(std::lround(largest)),
+                   " px the object can cover at z = ", int(std::lround(z)), " mm: the depth reads "
+                   "too far (check the depth scale and the camera)");
+    const bool at_border = box.x <= 0 || box.y <= 0 || box.x + box.w >= K.width ||
+                           box.y + box.h >= K.height;
+    if (!at_border && side < nominal / 8)
+        return cat("its ", side, " px box is under 1/8 of the ", int(std::lround(nominal)),
+                   " px the object covers at z = ", int(std::lround(z)), " mm: the depth reads "
+                   "too near (check the depth scale and the camera)");
+    return "";
 }
 
 namespace {
@@ -448,6 +471,11 @@ void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
         if (h.verdict == Verdict::covered) continue;
         if (!h.outcome.ok()) {
             h.verdict = Verdict::no_pose;
+            continue;
+        }
+        if (!implausible_distance(h.outcome.pose, h.outcome.box, K,
+                                  model_.diameter.at(h.cand.obj_id)).empty()) {
+            h.verdict = Verdict::implausible;
             continue;
         }
         if (h.score < opt.min_score) {

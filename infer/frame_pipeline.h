@@ -191,8 +191,19 @@ enum class Verdict {
     duplicate,   ///< another pose of the same object at the same place scored higher
     overlap,     ///< a higher-scored pose claims the same depth
     covered,     ///< not posed: its peak lies on depth a verified pose already explains
+    implausible, ///< its distance disagrees with its box (implausible_distance)
 };
 const char* to_string(Verdict v);
+
+/// Whether a pose's distance agrees with the box it came from; "" when it does, else why.
+/// The object (diameter d) at depth z projects to at most f d / (z - d/2) pixels (f: the mean
+/// focal length), so a box more than twice that is impossible — the depth reads too far (a
+/// depth scale or a camera too large); a box under 1/8 of f d / z that does not touch the image
+/// border shows the object far smaller than its depth allows, even 90 % hidden — the depth reads
+/// too near. A pose nearer than 50 mm or beyond 20 m is no sensor's either. Catches a depth
+/// scale 10x off, which otherwise gives confident poses at 6 m.
+std::string implausible_distance(const geom::Pose& pose, const geom::Box2i& box,
+                                 const geom::Intrinsics& K, double diameter);
 
 struct Hypothesis {
     Candidate cand;

@@ -38,6 +38,7 @@ const char* to_string(PoseStatus s) {
         case PoseStatus::rejected_low_score: return "low score";
         case PoseStatus::rejected_duplicate: return "duplicate";
         case PoseStatus::rejected_overlap: return "overlap";
+        case PoseStatus::rejected_implausible_distance: return "implausible distance";
     }
     return "unknown status";
 }
@@ -306,6 +307,11 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
         p = to_public(o);
         p.obj_id = boxes[i].obj_id;
         p.score = p.detection_score = boxes[i].score;
+        if (o.ok() && !infer::implausible_distance(o.pose, o.box, K, m.model.objects.at(o.obj_id).diameter)
+                           .empty()) {
+            p.status = PoseStatus::rejected_implausible_distance;
+            continue;
+        }
         if (!o.ok() || !m.pipeline->mesh(o.obj_id)) continue;
         const auto t0 = std::chrono::steady_clock::now();
         const infer::HypothesisOptions ho = m.hypothesis_options();
@@ -396,6 +402,9 @@ std::vector<ObjectPose> PoseEstimator::Impl::to_public(const std::vector<infer::
             case infer::Verdict::low_score: p.status = PoseStatus::rejected_low_score; break;
             case infer::Verdict::duplicate: p.status = PoseStatus::rejected_duplicate; break;
             case infer::Verdict::overlap: p.status = PoseStatus::rejected_overlap; break;
+            case infer::Verdict::implausible:
+                p.status = PoseStatus::rejected_implausible_distance;
+                break;
             case infer::Verdict::accepted:
             case infer::Verdict::no_pose:
             case infer::Verdict::covered: break;

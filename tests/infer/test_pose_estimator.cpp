@@ -17,6 +17,7 @@
 #include "core/checkpoint.h"
 #include "data/bop.h"
 #include "g2l/pose_estimator.h"
+#include "infer/frame_pipeline.h"
 #include "geometry/camera.h"
 #include "geometry/crop.h"
 #include "geometry/mesh_io.h"
@@ -654,4 +655,49 @@ TEST_CASE("PoseEstimator: meshes in metres, or of another object, are refused wi
                                std::filesystem::copy_options::overwrite_existing);
     REQUIRE_THROWS_WITH(g2l::PoseEstimator(kModel, opt),
                         Contains("measures 124.9") && Contains("trained on object 8 with diameter 114.05"));
+}
+
+TEST_CASE("PoseEstimator: a depth scale 10x off gives no 'ok' pose: implausible distance",
+          "[infer]") {
+    const Fixture f = load_frame(0);
+    std::vector<g2l::ObjectBox> boxes;
+    for (const auto& inst : f.frame->instances) boxes.push_back(box_of(inst));
+    g2l::PoseEstimator est(kModel);
+    g2l::FrameView v = view_of(f);
+    for (const auto& p : est.estimate(v, boxes)) REQUIRE(p.ok());  // the right scale: plausible
+    for (const double k : {10.0, 0.1}) {
+        INFO("depth scale x" << k);
+        v.depth_scale = f.frame->depth_scale * k;
+        const auto poses = est.estimate(v, boxes);
+        REQUIRE(poses.size() == boxes.size());
+        for (const auto& p : poses) {
+            // The pose exists (R, t set) but is not reported as ok: its distance contradicts
+            // the box the object fills.
+            CHECK(p.status == g2l::PoseStatus::rejected_implausible_distance);
+            CHECK(std::string(g2l::to_string(p.status)) == "implausible distance");
+            CHECK(p.t[2] != 0);
+        }
+    }
+}
+
+TEST_CASE("implausible_distance: box against the object's size at the pose's depth", "[infer]") {
+    g2l::geom::Intrinsics K;
+    K.fx = K.fy = 1000, K.cx = 320, K.cy = 240, K.width = 640, K.height = 480;
+    g2l::geom::Pose p;
+    p.t = {0, 0, 1000};  // a 100 mm object 1 m away covers ~100 px
+    const g2l::geom::Box2i seen{270, 190, 90, 80};
+    REQUIRE(g2l::infer::implausible_distance(p, seen, K, 100).empty());
+    REQUIRE(g2l::infer::implausible_distance(p, {300, 230, 15, 12}, K, 100).empty());  // 85 % hidden
+    p.t.z() = 10000;  // depth 10x too far: the object would cover ~10 px, the box is 90
+    REQUIRE_THAT(g2l::infer::implausible_distance(p, seen, K, 100),
+                 Contains("90 px box is more than twice") && Contains("reads too far"));
+    p.t.z() = 100;  // 10x too near: ~1000 px, the box is 90
+    REQUIRE_THAT(g2l::infer::implausible_distance(p, seen, K, 100), Contains("reads too near"));
+    // ... unless the box is cut by the image border (the object may extend beyond it).
+    p.t.z() = 150;
+    REQUIRE(g2l::infer::implausible_distance(p, {0, 190, 60, 80}, K, 100).empty());
+    p.t.z() = 30;
+    REQUIRE_THAT(g2l::infer::implausible_distance(p, seen, K, 100), Contains("outside any RGB-D"));
+    p.t.z() = std::nan("");
+    REQUIRE_THAT(g2l::infer::implausible_distance(p, seen, K, 100), Contains("outside any RGB-D"));
 }

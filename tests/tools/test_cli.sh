@@ -243,6 +243,13 @@ has "but the depth"
 printf '{"fx": 0, "fy": 500, "cx": 320, "cy": 240, "depth_scale": 0.1}' > "$T/cam0.json"
 expect 1 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$T/cam0.json" --box 8,186,132,139,191
 has "focal lengths must be > 0"
+# A depth_scale 10x off (1.0 instead of 0.1): the pose 5.6 m away cannot fill its 139 x 191 box;
+# it is not reported as ok, and stderr says what to check.
+printf '{"fx": 1066.778, "fy": 1067.487, "cx": 312.9869, "cy": 241.3109, "depth_scale": 1.0}' > "$T/cam10.json"
+expect 0 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$T/cam10.json" --box 8,186,132,139,191
+grep -q '"status": "implausible distance"' "$T/out" || fail "a 10x depth scale gave: $(cat "$T/out")"
+has "disagrees with its 139 x 191 px box"
+has "check the camera's depth_scale and intrinsics"
 # A camera without depth_scale (the depth's units unknown), a camera whose image size is not the
 # depth's, --box values out of range or not numbers, absurd thread counts, a full disk.
 printf '{"fx": 500, "fy": 500, "cx": 320, "cy": 240}' > "$T/camnoscale.json"

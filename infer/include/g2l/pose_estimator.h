@@ -79,11 +79,15 @@ enum class PoseStatus {
     // returns these from estimate(frame)):
     rejected_low_score,    ///< its verified score is below EstimatorOptions::min_pose_score
     rejected_duplicate,    ///< a higher-scored pose of the same object lies at the same place
-    rejected_overlap       ///< a higher-scored pose claims the same depth (ObjectPose::rival)
+    rejected_overlap,      ///< a higher-scored pose claims the same depth (ObjectPose::rival)
+    /// Its distance disagrees with its box: the box is larger than the object can look at that
+    /// depth, or far smaller than it must (a depth scale or camera off by a factor), or the
+    /// pose lies nearer than 50 mm or beyond 20 m.
+    rejected_implausible_distance
 };
 
 /// "ok", "unknown object", "box outside image", "no depth", "too few points",
-/// "too few object points", "low score", "duplicate", "overlap".
+/// "too few object points", "low score", "duplicate", "overlap", "implausible distance".
 G2L_API const char* to_string(PoseStatus status);
 
 /// Wall time of the stages of one box, in milliseconds. The boxes of one frame run through the

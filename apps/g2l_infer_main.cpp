@@ -18,6 +18,7 @@
 
 #include "core/cli.h"
 #include "core/error.h"
+#include "geometry/camera.h"
 #include "core/json.h"
 #include "data/bop.h"
 #include "data/dataset.h"
@@ -267,6 +268,14 @@ LoadedFrame load_frame(const g2l::data::SequenceFrame& sf, const std::string& ca
               "depth '", sf.depth, "' is ", f.w, " x ", f.h, " pixels but the camera '",
               camera_source, "' is ", f.cam.width, " x ", f.cam.height,
               " (its intrinsics do not hold for this image)");
+    g2l::geom::Intrinsics K;
+    K.fx = f.cam.fx, K.fy = f.cam.fy, K.cx = f.cam.cx, K.cy = f.cam.cy;
+    static bool warned = false;  // once per run: a video has one camera
+    if (const std::string why = g2l::geom::implausible_camera(K, f.w, f.h); !why.empty() && !warned) {
+        warned = true;
+        std::fprintf(stderr, "g2l_infer: warning: the camera '%s' looks wrong for '%s': %s\n",
+                     camera_source.c_str(), sf.depth.c_str(), why.c_str());
+    }
     if (!sf.rgb.empty()) {
         f.rgb = g2l::data::load_rgb_image(sf.rgb);
         G2L_CHECK(f.rgb.w == f.w && f.rgb.h == f.h, "rgb '", sf.rgb, "' is ", f.rgb.w, " x ",

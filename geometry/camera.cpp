@@ -112,4 +112,18 @@ Intrinsics intrinsics_from_cam_K(const double K[9], int width, int height) {
     return in;
 }
 
+std::string implausible_camera(const Intrinsics& K, int width, int height) {
+    if (width <= 0 || height <= 0) return cat("the image is ", width, " x ", height, " pixels");
+    const double fov = 2 * std::atan(0.5 * width / K.fx) * 180 / M_PI;
+    if (!(fov >= 20 && fov <= 140))
+        return cat("fx = ", K.fx, " gives a ", int(std::lround(fov)), " degree field of view on a ",
+                   width, " pixel wide image (RGB-D cameras: 20-140)");
+    if (std::abs(K.fx / K.fy - 1) > 0.1)
+        return cat("fx = ", K.fx, " and fy = ", K.fy, " differ by more than 10 %");
+    if (K.cx < 0.2 * width || K.cx > 0.8 * width || K.cy < 0.2 * height || K.cy > 0.8 * height)
+        return cat("the principal point (", K.cx, ", ", K.cy, ") is off the middle of the ", width,
+                   " x ", height, " image (intrinsics of another resolution?)");
+    return "";
+}
+
 }  // namespace g2l::geom

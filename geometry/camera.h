@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <vector>
 
+#include <string>
+
 #include "geometry/types.h"
 
 namespace g2l::geom {
@@ -41,5 +43,12 @@ Pixels project(const Points& pts, const Intrinsics& K);
 /// if fx/fy <= 0, an entry is non-finite, the matrix has skew or a last row other than
 /// (0, 0, 1), or width/height <= 0.
 Intrinsics intrinsics_from_cam_K(const double K[9], int width, int height);
+
+/// "" when the intrinsics are plausible for a width x height image, else why: a horizontal
+/// field of view outside 20-140 degrees (fx outside 0.18-2.8 x width), fx and fy more than 10 %
+/// apart, or the principal point outside the middle 60 % of the image. The intrinsics of
+/// another resolution (a 1280 x 960 calibration on 640 x 480 frames) fail the last; poses
+/// through them would be off without an error anywhere, so tools warn.
+std::string implausible_camera(const Intrinsics& K, int width, int height);
 
 }  // namespace g2l::geom

@@ -124,3 +124,27 @@ TEST_CASE("intrinsics_from_cam_K reads a BOP cam_K and rejects bad matrices", "[
     REQUIRE_THROWS_WITH(intrinsics_from_cam_K(row, 640, 480), Contains("(0, 0, 2)"));
     REQUIRE_THROWS_WITH(intrinsics_from_cam_K(K, 0, 480), Contains("0 x 480"));
 }
+
+TEST_CASE("implausible_camera: field of view, aspect and principal point for the image",
+          "[geometry]") {
+    Intrinsics ycbv;  // YCB-Video's Xtion at 640 x 480
+    ycbv.fx = 1066.778, ycbv.fy = 1067.487, ycbv.cx = 312.9869, ycbv.cy = 241.3109;
+    REQUIRE(implausible_camera(ycbv, 640, 480).empty());
+    Intrinsics lm = ycbv;  // LINEMOD's Kinect
+    lm.fx = 572.4114, lm.fy = 573.57043, lm.cx = 325.2611, lm.cy = 242.04899;
+    REQUIRE(implausible_camera(lm, 640, 480).empty());
+    // YCB-V's intrinsics on a 320 x 240 image: a 17 degree view.
+    REQUIRE_THAT(implausible_camera(ycbv, 320, 240), Catch::Contains("17 degree field of view"));
+    // A principal point near the corner: intrinsics of another resolution or crop.
+    Intrinsics corner = ycbv;
+    corner.cx = 600;
+    REQUIRE_THAT(implausible_camera(corner, 640, 480), Catch::Contains("another resolution"));
+    // Intrinsics of a 2x calibration: a 17 degree field of view.
+    Intrinsics big = ycbv;
+    big.fx *= 2, big.fy *= 2, big.cx *= 2, big.cy *= 2;
+    REQUIRE_THAT(implausible_camera(big, 640, 480), Catch::Contains("17 degree field of view"));
+    Intrinsics skew = ycbv;
+    skew.fy = 800;
+    REQUIRE_THAT(implausible_camera(skew, 640, 480), Catch::Contains("differ by more than 10 %"));
+    REQUIRE_THAT(implausible_camera(ycbv, 0, 480), Catch::Contains("0 x 480"));
+}

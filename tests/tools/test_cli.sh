@@ -250,6 +250,11 @@ expect 0 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --ca
 grep -q '"status": "implausible distance"' "$T/out" || fail "a 10x depth scale gave: $(cat "$T/out")"
 has "disagrees with its 139 x 191 px box"
 has "check the camera's depth_scale and intrinsics"
+# Intrinsics of a 2x calibration on the 640 x 480 frame: a warning naming the camera and why.
+printf '{"fx": 2133.5, "fy": 2135.0, "cx": 625.97, "cy": 482.6, "depth_scale": 0.1}' > "$T/cam2x.json"
+expect 0 "$B/apps/g2l_infer" --model "$MODEL" --depth "$F/depth/000001.png" --camera "$T/cam2x.json" --box 8,186,132,139,191
+has "cam2x.json' looks wrong for"
+has "17 degree field of view"
 # A camera without depth_scale (the depth's units unknown), a camera whose image size is not the
 # depth's, --box values out of range or not numbers, absurd thread counts, a full disk.
 printf '{"fx": 500, "fy": 500, "cx": 320, "cy": 240}' > "$T/camnoscale.json"

@@ -232,10 +232,10 @@ std::vector<DetBox> visible_boxes(const data::RenderedFrame& fr, const std::vect
 // (and the detector export next to them).
 class DetectorTask final : public TrainTask {
 public:
-    DetectorTask(const DetectorTrainConfig& cfg, std::vector<data::Image> photos, const RunDir& run,
-                 int64_t img_lo, int64_t img_hi, bool progress)
-        : cfg_(cfg), photos_(std::move(photos)), run_(run), lo_(img_lo), hi_(img_hi),
-          progress_(progress), ts_(cfg), W_(ts_.scene.camera.width), H_(ts_.scene.camera.height),
+    DetectorTask(const DetectorTrainConfig& cfg, const TrainOptions& opt,
+                 std::vector<data::Image> photos, const RunDir& run, int64_t img_lo, int64_t img_hi)
+        : cfg_(cfg), opt_(opt), photos_(std::move(photos)), run_(run), lo_(img_lo), hi_(img_hi),
+          progress_(opt.progress && dist::is_root()), ts_(cfg), W_(ts_.scene.camera.width), H_(ts_.scene.camera.height),
           dc_(detector_config(cfg)), net_(dc_),
           adam_({nn::ParamGroup{"detector", net_.named_parameters()}}, adam_options(cfg)),
           gen_(ts_.scene, ts_.sm) {
@@ -378,6 +378,7 @@ private:
         std::vector<DetSample> batch(static_cast<size_t>(hi_ - lo_));
         data::RenderedFrame fr;
         for (int64_t b = lo_; b < hi_; ++b) {
+            if (interrupt_now(opt_)) throw StepInterrupted();
             gen_.render_frame(s * cfg_.batch + b, fr, 1);
             DetSample& d = batch[size_t(b - lo_)];
             d.rgb = fr.rgb;
@@ -465,6 +466,7 @@ private:
     }
 
     const DetectorTrainConfig& cfg_;
+    const TrainOptions& opt_;
     const std::vector<data::Image> photos_;
     const RunDir& run_;
     const int64_t lo_, hi_;  // this process's images of each global batch
@@ -492,8 +494,7 @@ DetectorTrainSummary run_detector_training(const DetectorTrainConfig& cfg, const
     // of every global batch; rank 0 alone writes the run directory and prints.
     const std::pair<int64_t, int64_t> shard = dist::shard(cfg.batch);
     const RunDir run(run_dir, !opt.resume_dir.empty(), opt.force, {"steps.jsonl"}, dist::is_root());
-    DetectorTask task(cfg, std::move(photos), run, shard.first, shard.second,
-                      opt.progress && dist::is_root());
+    DetectorTask task(cfg, opt, std::move(photos), run, shard.first, shard.second);
     LoopState start;
     if (!opt.resume_dir.empty()) {
         start = task.resume(run.path("last.g2l"));

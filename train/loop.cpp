@@ -108,6 +108,10 @@ std::string progress_text(const LoopOptions& lo, const Report& at, const StepVal
 
 }  // namespace
 
+bool interrupt_now(const TrainOptions& opt) {
+    return opt.stop_flag && opt.stop_flag->load() && dist::size() == 1;
+}
+
 std::string format_duration(double seconds) {
     char b[32];
     const int t = int(std::max(0.0, seconds) + 0.5);
@@ -141,7 +145,15 @@ LoopResult run_loop(TrainTask& task, const RunDir& run, const LoopOptions& lo,
         while (s.epoch_step < n) {
             adam.set_lr(task.lr(s));
             const auto t0 = Clock::now();
-            StepValues v = task.step(s);
+            StepValues v;
+            try {
+                v = task.step(s);
+            } catch (const StepInterrupted&) {
+                r.interrupted = stop = true;
+                r.stop_reason = "signal";
+                save("last.g2l");  // the state before this step: nothing of it was applied
+                break;
+            }
             G2L_CHECK(!v.empty(), "training: a step returned no loss");
             bool any_signal = opt.stop_flag && opt.stop_flag->load();
             bool any_time_limit = limit_s > 0 && seconds_before + since(t_start) >= limit_s;

@@ -19,6 +19,7 @@
 
 #include <cstdint>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -45,6 +46,17 @@ struct LoopState {
 /// task weights by its share of the batch where the value is a mean over the batch. The first
 /// value of a step is its total loss.
 using StepValues = std::vector<std::pair<std::string, double>>;
+
+/// Thrown by a task's step when TrainOptions::stop_flag rises while it gathers its batch (a big
+/// batch can take minutes): nothing of the step has been applied, so the loop saves the state
+/// before it and stops as for a signal. One process only — with several, the flag travels in
+/// the step's all-reduce so that every process stops after the same step.
+struct StepInterrupted : std::runtime_error {
+    StepInterrupted() : std::runtime_error("interrupted while gathering the batch") {}
+};
+
+/// True when a task may throw StepInterrupted now (the flag is up, one process).
+bool interrupt_now(const TrainOptions& opt);
 
 /// What the loop needs from a trainer.
 class TrainTask {

@@ -3,6 +3,7 @@
 // decoding on synthetic heat-maps, targets that decode back to their boxes, the focal loss at
 // known values, bad configs and exports, and a tiny detector that learns to find coloured squares.
 #include <catch2/catch.hpp>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -502,6 +503,19 @@ TEST_CASE("detector training: run directory, checkpoints and --resume continue t
     // Resuming a finished run says so.
     REQUIRE_THROWS_WITH(train::run_detector_training(config(b), resume),
                         Contains("already finished its 4 steps"));
+    // A signal while the first batch renders: no step, last.g2l at step 0, resumable to the
+    // same losses.
+    const std::string c = dir + "/run_c";
+    std::atomic<bool> stop{true};
+    train::TrainOptions sig = quiet;
+    sig.stop_flag = &stop;
+    const auto sd = train::run_detector_training(config(c), sig);
+    REQUIRE(sd.interrupted);
+    REQUIRE(sd.steps == 0);
+    train::TrainOptions resume_c = quiet;
+    resume_c.resume_dir = c;
+    REQUIRE(train::run_detector_training(config(c), resume_c).steps == 4);
+    REQUIRE(losses(c) == losses(a));
 }
 
 TEST_CASE("detector training: distractor meshes and photo backgrounds", "[detector][train]") {

@@ -2,6 +2,7 @@
 // g2l_train end to end on tiny settings: losses fall, resume == uninterrupted (bitwise), the
 // checkpoint describes the model, g2l_eval's evaluation runs on real frames.
 #include <catch2/catch.hpp>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -139,6 +140,46 @@ TEST_CASE("g2l_train: stopping and resuming equals an uninterrupted run, bitwise
     REQUIRE(sb.steps == 8);
     require_same_checkpoint(a + "/last.g2l", b + "/last.g2l");
     REQUIRE(logged(a, "loss") == logged(b, "loss"));
+}
+
+TEST_CASE("g2l_train: a signal while the batch is gathered stops at once and resumes, and a batch "
+          "that cannot fit in memory is refused", "[train][trainer][resume]") {
+    const std::string a = testing::temp_dir("sig_a"), b = testing::temp_dir("sig_b");
+    train::TrainOptions opt;
+    opt.progress = false;
+    const auto ca = train::parse_config_text(tiny_config(a, 1, 16), "a.json");
+    const auto cb = train::parse_config_text(tiny_config(b, 1, 16), "b.json");
+    REQUIRE(train::run_training(ca, opt).steps == 4);
+    // The flag is up before the first batch is complete: no step runs, last.g2l holds step 0
+    // and the log says why; the resumed run is the uninterrupted one.
+    std::atomic<bool> stop{true};
+    train::TrainOptions sig = opt;
+    sig.stop_flag = &stop;
+    const auto sb = train::run_training(cb, sig);
+    REQUIRE(sb.interrupted);
+    REQUIRE(sb.stopped_early);
+    REQUIRE(sb.steps == 0);
+    REQUIRE(fs::exists(b + "/last.g2l"));
+    std::ifstream log(b + "/steps.jsonl");
+    std::string last, line;
+    while (std::getline(log, line)) last = line;
+    const auto rec = nlohmann::json::parse(last);
+    REQUIRE(rec.at("event") == "stopped");
+    REQUIRE(rec.at("reason") == "signal");
+    REQUIRE(rec.at("step") == 0);
+    train::TrainOptions resume = opt;
+    resume.resume_dir = b;
+    REQUIRE(train::run_training(cb, resume).steps == 4);
+    require_same_checkpoint(a + "/last.g2l", b + "/last.g2l");
+    REQUIRE(logged(a, "loss") == logged(b, "loss"));
+    // batch 10^7 at 128 points, width 0.125: ~1.6 TB; refused before the run directory exists.
+    const std::string c = testing::temp_dir("sig_c") + "/run";
+    auto big = nlohmann::json::parse(tiny_config(c, 1, 16));
+    big["train"]["batch"] = 10000000;
+    REQUIRE_THROWS_WITH(train::run_training(train::parse_config_text(big.dump(), "big.json"), opt),
+                        Catch::Contains("train.batch 10000000: a training step needs about") &&
+                            Catch::Contains("GB available: lower train.batch"));
+    REQUIRE(!fs::exists(c));
 }
 
 TEST_CASE("g2l_train: making the next batch on a second thread changes nothing, bitwise",

@@ -247,7 +247,7 @@ int main(int argc, char** argv) {
                       "or replace it with --force");
             fs::remove_all(scene_dir);
         }
-        data::BopSceneWriter writer(scene_dir.string());
+        data::BopSceneWriter writer(scene_dir.string(), frames);
         write_file_atomic((root / split / scene_name / "scene_config.json").string(),
                           data::scene_config_to_json(cfg) + "\n");
 
@@ -267,7 +267,7 @@ int main(int argc, char** argv) {
             }
             if ((f + 1) % 200 == 0) writer.flush();  // partial output stays readable
         }
-        writer.flush();
+        writer.finish();
         std::printf("wrote %lld frames to %s\n", (long long)frames, writer.dir().c_str());
         return 0;
     } catch (const std::exception& e) {

@@ -197,6 +197,16 @@ std::vector<Frame> read_scene(const SceneContext& sc) {
     const fs::path info_path = sc.dir / "scene_gt_info.json";
     const std::string gt_file = gt_path.string(), cam_file = cam_path.string();
     const std::string info_file = info_path.string();
+    // A scene a writer did not finish (g2l_render killed): its JSON lists fewer frames than its
+    // folders hold, and the render was meant to be larger. Refused, never read as complete.
+    const fs::path marker = sc.dir / "render_incomplete.json";  // data/bop_writer.h
+    if (fs::is_regular_file(marker)) {
+        const json m = read_json(marker);
+        G2L_CHECK(false, "scene '", sc.dir.string(), "' was not finished: its render stopped with ",
+                  m.value("frames_listed", 0), " of ", m.value("frames_planned", 0), " frames "
+                  "listed in scene_gt.json (", marker.string(), "); render it again (g2l_render "
+                  "--force), or delete the marker to use the frames listed");
+    }
     const json gt = read_json(gt_path), cam = read_json(cam_path);
     const bool has_info = fs::is_regular_file(info_path);
     const json info = has_info ? read_json(info_path) : json::object();

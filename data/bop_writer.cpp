@@ -54,13 +54,15 @@ std::string assemble(const std::map<int, std::string>& entries) {
 
 }  // namespace
 
-BopSceneWriter::BopSceneWriter(std::string scene_dir) : dir_(std::move(scene_dir)) {
+BopSceneWriter::BopSceneWriter(std::string scene_dir, int64_t planned)
+    : dir_(std::move(scene_dir)), planned_(planned) {
     for (const char* sub : {"rgb", "depth", "mask", "mask_visib"}) {
         std::error_code ec;
         fs::create_directories(fs::path(dir_) / sub, ec);
         G2L_CHECK(!ec, "BopSceneWriter: cannot create '", (fs::path(dir_) / sub).string(),
                   "': ", ec.message());
     }
+    flush();  // the marker first: a scene killed before its first flush is marked too
 }
 
 void BopSceneWriter::write(int image_id, const RenderedFrame& f) {
@@ -126,9 +128,19 @@ void BopSceneWriter::write(int image_id, const RenderedFrame& f) {
 
 void BopSceneWriter::flush() const {
     const fs::path dir(dir_);
+    write_file_atomic((dir / kIncompleteMarker).string(),
+                      json{{"frames_planned", planned_}, {"frames_listed", gt_.size()}}.dump() + "\n");
     write_file_atomic((dir / "scene_gt.json").string(), assemble(gt_));
     write_file_atomic((dir / "scene_camera.json").string(), assemble(camera_));
     write_file_atomic((dir / "scene_gt_info.json").string(), assemble(info_));
+}
+
+void BopSceneWriter::finish() const {
+    flush();
+    std::error_code ec;
+    fs::remove(fs::path(dir_) / kIncompleteMarker, ec);
+    G2L_CHECK(!ec, "BopSceneWriter: cannot remove '", (fs::path(dir_) / kIncompleteMarker).string(),
+              "': ", ec.message());
 }
 
 std::string read_symmetries(const std::string& models_info_path, int obj_id) {

@@ -17,12 +17,18 @@
 
 namespace g2l::data {
 
+/// The file a scene folder holds while it is being written (an interrupted render keeps it).
+constexpr const char* kIncompleteMarker = "render_incomplete.json";
+
 /// Accumulates the JSON records of one BOP scene while its images are written.
 class BopSceneWriter {
 public:
-    /// Creates scene_dir and its rgb/, depth/, mask/, mask_visib/ sub-folders. Throws
-    /// g2l::Error naming the folder when it cannot be created.
-    explicit BopSceneWriter(std::string scene_dir);
+    /// Creates scene_dir and its rgb/, depth/, mask/, mask_visib/ sub-folders, and the marker
+    /// kIncompleteMarker that says the scene is being written (open_bop refuses a scene that
+    /// holds it, naming how many frames its JSON lists); finish() removes it. `planned`: the
+    /// frames the writer will write (for the marker; 0 = unknown). Throws g2l::Error naming
+    /// the folder when it cannot be created.
+    explicit BopSceneWriter(std::string scene_dir, int64_t planned = 0);
 
     /// Writes the images of `frame` under image id `image_id` (>= 0) and records its
     /// scene_gt / scene_camera / scene_gt_info entries. Depth values beyond the uint16 range
@@ -31,13 +37,17 @@ public:
     void write(int image_id, const RenderedFrame& frame);
 
     /// Writes scene_gt.json, scene_camera.json and scene_gt_info.json for every frame written so
-    /// far (may be called repeatedly; each call rewrites them). Throws g2l::Error on write errors.
+    /// far (may be called repeatedly; each call rewrites them) and the marker's count. Throws
+    /// g2l::Error on write errors.
     void flush() const;
+    /// flush(), then removes the marker: the scene is complete.
+    void finish() const;
 
     const std::string& dir() const { return dir_; }
 
 private:
     std::string dir_;
+    int64_t planned_ = 0;
     std::map<int, std::string> gt_, camera_, info_;  ///< image id -> serialised JSON value
 };
 

@@ -209,13 +209,20 @@ TEST_CASE("BOP writer output reads back with the BOP reader", "[data][scene][bop
     write_bop_models((root / "models").string(), m.list());
     std::vector<RenderedFrame> frames(2);
     {
-        BopSceneWriter w((root / "train_synt" / "000000").string());
+        BopSceneWriter w((root / "train_synt" / "000000").string(), 3);
         for (int i = 0; i < 2; ++i) {
             gen.render_frame(i, frames[size_t(i)]);
             w.write(i, frames[size_t(i)]);
         }
         w.flush();
         REQUIRE_THROWS_WITH(w.write(1, frames[1]), Contains("image id 1 written twice"));
+        // Flushed but not finished (a render killed here): the reader refuses the scene,
+        // saying how far it got and what to do.
+        REQUIRE_THROWS_WITH(open_bop(root.string(), "train_synt"),
+                            Contains("000000' was not finished: its render stopped with 2 of 3 "
+                                     "frames listed") && Contains("g2l_render --force"));
+        w.finish();
+        REQUIRE(!fs::exists(root / "train_synt" / "000000" / kIncompleteMarker));
     }
     const BopDataset ds = open_bop(root.string(), "train_synt");
     REQUIRE(ds.frames().size() == 2);
@@ -262,7 +269,7 @@ TEST_CASE("BOP writer output reads back with the BOP reader", "[data][scene][bop
         gen2.render_frame(i, f, i == 0 ? 1 : 2);
         w2.write(i, f);
     }
-    w2.flush();
+    w2.finish();
     for (const char* file : {"scene_gt.json", "scene_gt_info.json", "scene_camera.json",
                              "depth/000001.png", "rgb/000000.png", "mask/000001_000000.png"}) {
         INFO(file);

@@ -198,6 +198,7 @@ void visit_config(IO& io, TrainConfig& c) {
         t.integer("val_every", p.val_every);
         t.integer("max_val_samples", p.max_val_samples);
         t.num("time_limit_min", p.time_limit_min);
+        t.boolean("time_schedule", p.time_schedule);
         t.integer("log_every", p.log_every);
         t.boolean("prefetch", p.prefetch);
     });

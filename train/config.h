@@ -130,6 +130,11 @@ struct LoopConfig {
     int val_every = 1;              ///< epochs between validations; 0 = never
     int64_t max_val_samples = 200;  ///< 0 = every validation sample
     double time_limit_min = 0;      ///< > 0: stop with a checkpoint after this many minutes
+    /// With time_limit_min: the learning-rate schedule follows the share of the time limit spent
+    /// when it is ahead of the share of the epochs done, so a run the time limit ends early has
+    /// decayed as one that ran to the end (the epochs a step is in then depend on the machine's
+    /// speed: not bitwise reproducible across machines).
+    bool time_schedule = false;
     int log_every = 10;             ///< steps between log lines
     /// Make the next batch (render, crop, label) on a second thread while this one trains.
     /// Never changes a result: a batch depends only on its position in the epoch's order.

@@ -60,7 +60,8 @@ json to_json(const DetectorTrainConfig& c) {
                   {"batch", c.batch},
                   {"checkpoint_every", c.checkpoint_every},
                   {"log_every", c.log_every},
-                  {"time_limit_min", c.time_limit_min}}},
+                  {"time_limit_min", c.time_limit_min},
+                  {"time_schedule", c.time_schedule}}},
                 {"val",
                  {{"root", c.val_root},
                   {"split", c.val_split},
@@ -177,6 +178,7 @@ DetectorTrainConfig parse_detector_config(const std::string& json_text, const st
         kt.integer("checkpoint_every", c.checkpoint_every);
         kt.integer("log_every", c.log_every);
         kt.num("time_limit_min", c.time_limit_min);
+        kt.boolean("time_schedule", c.time_schedule);
     });
     k.object("val", [&](JsonReader& kv) {
         kv.text("root", c.val_root);

@@ -284,7 +284,11 @@ public:
     // Step decay: x0.1 at 70 % and 90 % of the steps.
     double lr(const LoopState& s) const override {
         const int64_t n = cfg_.steps;
-        return cfg_.lr * (s.step >= n * 9 / 10 ? 0.01 : s.step >= n * 7 / 10 ? 0.1 : 1.0);
+        int64_t at = s.step;
+        if (cfg_.time_schedule)  // the step the clock says the run is at (time limit first)
+            at = std::max(at, int64_t(time_fitted_progress(s, double(at) / double(n),
+                                                           cfg_.time_limit_min) * double(n)));
+        return cfg_.lr * (at >= n * 9 / 10 ? 0.01 : at >= n * 7 / 10 ? 0.1 : 1.0);
     }
     int64_t begin_epoch(const LoopState& s) override {
         previewed_ = s.step > 0 || !dist::is_root();  // a resumed run has its preview

@@ -79,6 +79,9 @@ struct DetectorTrainConfig {
     int checkpoint_every = 250;
     int log_every = 25;
     double time_limit_min = 0;      ///< 0 = none; stop with a checkpoint after this much time
+    /// With time_limit_min: the step decay at 70 % / 90 % follows the share of the time limit
+    /// spent when it is ahead of the share of the steps (train/config.h LoopConfig).
+    bool time_schedule = false;
     // validation on real images (optional: val_root empty = none)
     std::string val_root, val_split = "test";
     int val_every = 0;              ///< steps between validations (0 = only at the end)

@@ -108,6 +108,11 @@ std::string progress_text(const LoopOptions& lo, const Report& at, const StepVal
 
 }  // namespace
 
+double time_fitted_progress(const LoopState& s, double by_steps, double time_limit_min) {
+    if (time_limit_min <= 0) return by_steps;
+    return std::max(by_steps, std::min(1.0, s.seconds / (time_limit_min * 60)));
+}
+
 bool interrupt_now(const TrainOptions& opt) {
     return opt.stop_flag && opt.stop_flag->load() && dist::size() == 1;
 }
@@ -143,6 +148,7 @@ LoopResult run_loop(TrainTask& task, const RunDir& run, const LoopOptions& lo,
         G2L_CHECK(n > 0, "training: epoch ", s.epoch, " has no step to run");
         const auto t_epoch = Clock::now();
         while (s.epoch_step < n) {
+            s.seconds = seconds_before + since(t_start);  // a schedule may follow the clock
             adam.set_lr(task.lr(s));
             const auto t0 = Clock::now();
             StepValues v;

@@ -55,6 +55,10 @@ struct StepInterrupted : std::runtime_error {
     StepInterrupted() : std::runtime_error("interrupted while gathering the batch") {}
 };
 
+/// The share of the run done at `s` by the clock (s.seconds / time limit) when that is ahead
+/// of `by_steps`, else by_steps: what a time-fitted schedule follows (time_schedule).
+double time_fitted_progress(const LoopState& s, double by_steps, double time_limit_min);
+
 /// True when a task may throw StepInterrupted now (the flag is up, one process).
 bool interrupt_now(const TrainOptions& opt);
 
@@ -64,7 +68,7 @@ public:
     virtual ~TrainTask() = default;
     /// The optimiser the loop steps (after the all-reduce) and whose learning rate it sets.
     virtual nn::Adam& optimizer() = 0;
-    /// The learning rate of the step about to run at `s`.
+    /// The learning rate of the step about to run at `s` (s.seconds is current).
     virtual double lr(const LoopState& s) const = 0;
     /// Prepares epoch `s.epoch` (its data order, the model's training mode); returns the
     /// number of steps it has (> 0).

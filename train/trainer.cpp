@@ -306,7 +306,13 @@ public:
     }
 
     nn::Adam& optimizer() override { return adam_; }
-    double lr(const LoopState& s) const override { return schedule_->lr_at(s.epoch); }
+    double lr(const LoopState& s) const override {
+        if (!cfg_.train.time_schedule) return schedule_->lr_at(s.epoch);
+        // The epoch the clock says the run is in, when the time limit will end it early.
+        const int E = cfg_.train.epochs;
+        const double p = time_fitted_progress(s, double(s.epoch) / E, cfg_.train.time_limit_min);
+        return schedule_->lr_at(std::min(E - 1, std::max(s.epoch, int(p * E))));
+    }
 
     int64_t begin_epoch(const LoopState& s) override {
         if (ahead_.valid()) ahead_.wait();  // a stopped epoch's prefetch reads the old sources

@@ -503,6 +503,26 @@ TEST_CASE("detector training: run directory, checkpoints and --resume continue t
     // Resuming a finished run says so.
     REQUIRE_THROWS_WITH(train::run_detector_training(config(b), resume),
                         Contains("already finished its 4 steps"));
+    // train.time_schedule: a 1000-step run that a 1.2 s limit ends after a few dozen steps
+    // still reaches the last decay (x0.01) by the clock.
+    {
+        train::DetectorTrainConfig t = config(dir + "/run_t");
+        t.steps = 1000;
+        t.time_limit_min = 0.02;
+        t.time_schedule = true;
+        const auto st = train::run_detector_training(t, quiet);
+        REQUIRE(st.stopped_early);
+        REQUIRE(st.steps < 700);  // by steps, not even the first decay
+        std::vector<double> lr;
+        std::ifstream f(dir + "/run_t/steps.jsonl");
+        for (std::string line; std::getline(f, line);) {
+            const auto j = nlohmann::json::parse(line);
+            if (j.contains("lr")) lr.push_back(j["lr"].get<double>());
+        }
+        INFO(st.steps << " steps");
+        REQUIRE(lr.front() == Approx(t.lr));
+        REQUIRE(lr.back() == Approx(0.01 * t.lr));
+    }
     // A signal while the first batch renders: no step, last.g2l at step 0, resumable to the
     // same losses.
     const std::string c = dir + "/run_c";

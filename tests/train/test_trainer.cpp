@@ -485,3 +485,31 @@ TEST_CASE("g2l_train: a linemod_preprocessed source trains and validates like th
     REQUIRE_THROWS_WITH(train::parse_config_text(bad.dump(), "bad.json"),
                         Catch::Contains("'data.train[0]': a linemod_preprocessed source reads"));
 }
+
+TEST_CASE("g2l_train: train.time_schedule decays the learning rate of a run the time limit ends "
+          "early", "[train][trainer]") {
+    // 20 epochs, lr x0.1 after epoch 10; a 1.2-second limit ends the run in its first epochs.
+    auto config = [](const std::string& dir, bool fit) {
+        auto j = nlohmann::json::parse(tiny_config(dir, 20, 16));
+        j["schedule"] = {{"kind", "step"}, {"step_epochs", 10}, {"gamma", 0.1}};
+        j["train"]["time_limit_min"] = 0.02;
+        j["train"]["time_schedule"] = fit;
+        j["data"]["val"] = nlohmann::json::array();
+        return train::parse_config_text(j.dump(), "t.json");
+    };
+    train::TrainOptions opt;
+    opt.progress = false;
+    const std::string a = testing::temp_dir("time_fixed"), b = testing::temp_dir("time_fitted");
+    const auto sa = train::run_training(config(a, false), opt);
+    const auto sb = train::run_training(config(b, true), opt);
+    REQUIRE(sa.stopped_early);
+    REQUIRE(sb.stopped_early);
+    REQUIRE(sb.epochs_done < 10);  // by epochs, the decay would not have come
+    const auto la = logged(a, "lr"), lb = logged(b, "lr");
+    INFO(la.size() << " and " << lb.size() << " steps in 1.2 s");
+    for (double lr : la) REQUIRE(lr == Approx(1e-3));  // by epochs: never decayed
+    // By the clock: the first half of the limit at 1e-3, the second at 1e-4.
+    REQUIRE(lb.front() == Approx(1e-3));
+    REQUIRE(lb.back() == Approx(1e-4));
+    for (double lr : lb) REQUIRE((lr == Approx(1e-3) || lr == Approx(1e-4)));
+}

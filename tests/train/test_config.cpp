@@ -64,7 +64,7 @@ json everything() {
                 "lr_mult": {"seg": 2, "tnet": 3, "evf": 4, "rot": 5, "rre": 6}},
       "schedule": {"kind": "official", "step_epochs": 7, "gamma": 0.25},
       "train": {"epochs": 12, "batch": 4, "samples_per_epoch": 100, "checkpoint_every": 2,
-                "val_every": 3, "max_val_samples": 50, "time_limit_min": 1.5, "log_every": 5,
+                "val_every": 3, "max_val_samples": 50, "time_limit_min": 1.5, "time_schedule": true, "log_every": 5,
                 "prefetch": false}
     })");
 }
@@ -175,6 +175,7 @@ TEST_CASE("config: defaults are the paper's values", "[config]") {
     CHECK(c.train.val_every == 1);
     CHECK(c.train.max_val_samples == 200);
     CHECK(c.train.time_limit_min == 0);
+    CHECK(!c.train.time_schedule);
     CHECK(c.train.log_every == 10);
     // The struct defaults agree with the loaded ones (a default-constructed config only lacks
     // the train source, the name and the run dir).
@@ -262,6 +263,7 @@ TEST_CASE("config: every key round-trips through config_to_json", "[config]") {
     CHECK(c.train.val_every == 3);
     CHECK(c.train.max_val_samples == 50);
     CHECK(c.train.time_limit_min == 1.5);
+    CHECK(c.train.time_schedule);
     CHECK(c.train.log_every == 5);
 
     // Print -> parse -> print is a fixed point, and the printed JSON has every input key with

@@ -4,6 +4,7 @@
 #include "train/config.h"
 #include "core/json.h"
 #include "core/json_reader.h"
+#include "core/json_writer.h"
 
 #include <algorithm>
 #include <cmath>
@@ -38,51 +39,8 @@ std::string list_str(const Choices& v, bool quote) {
 /// The strict reader is the one every JSON file uses (core/json_reader.h).
 using Reader = OrderedJsonReader;
 
-/// Writes every visited field into a JSON object, in visiting order.
-class Writer {
-public:
-    explicit Writer(json& j) : j_(j) {}
-    void require(const char*) const {}
-    void num(const char* k, double v) { j_[k] = v; }
-    template <class T>
-    void integer(const char* k, T v) { j_[k] = v; }
-    void boolean(const char* k, bool v) { j_[k] = v; }
-    void text(const char* k, const std::string& v) { j_[k] = v; }
-    void choice(const char* k, const std::string& v, const Choices&) { j_[k] = v; }
-    void ints(const char* k, const std::vector<int>& v) { j_[k] = v; }
-    void texts(const char* k, const std::vector<std::string>& v) { j_[k] = v; }
-    void num3(const char* k, const std::array<double, 3>& v) { j_[k] = v; }
-    void raw_object(const char* k, const std::string& v) {
-        json x;
-        try {
-            x = json::parse(v);
-        } catch (const json::exception& e) {
-            G2L_CHECK(false, "config_to_json: '", k, "' holds invalid JSON text: ", e.what());
-        }
-        j_[k] = std::move(x);
-    }
-    template <class F>
-    void object(const char* k, F&& f) {
-        json sub = json::object();
-        Writer w(sub);
-        f(w);
-        j_[k] = std::move(sub);
-    }
-    template <class T, class F>
-    void list(const char* k, std::vector<T>& v, F&& f) {
-        json arr = json::array();
-        for (T& e : v) {
-            json sub = json::object();
-            Writer w(sub);
-            f(w, e);
-            arr.push_back(std::move(sub));
-        }
-        j_[k] = std::move(arr);
-    }
-
-private:
-    json& j_;
-};
+/// Writes every visited field (core/json_writer.h).
+using Writer = JsonWriter;
 
 const Choices kCrops{"sphere", "frustum", "slab"};
 const Choices kKeypoints{"bbx8", "fps4", "fps8", "fps12"};

@@ -13,6 +13,7 @@
 #include "core/error.h"
 #include "core/json.h"
 #include "core/json_reader.h"
+#include "core/json_writer.h"
 #include "train/config.h"
 #include "train/detector_train.h"
 
@@ -25,48 +26,66 @@ namespace {
 
 
 // ---------------------------------------------------------------- config
-json to_json(const DetectorTrainConfig& c) {
-    return json{{"task", "detector"},
-                {"name", c.name},
-                {"seed", c.seed},
-                {"threads", c.threads},
-                {"device", c.device},
-                {"run_dir", c.run_dir},
-                {"data",
-                 {{"models_root", c.models_root},
-                  {"object_ids", c.object_ids},
-                  {"downscale", c.downscale},
-                  {"input", nn::to_string(c.input)},
-                  {"min_visib_fract", c.min_visib_fract},
-                  {"distractors_root", c.distractors_root},
-                  {"distractor_ids", c.distractor_ids},
-                  {"distractor_colors", c.distractor_colors},
-                  {"scene", json::parse(data::scene_config_to_json(c.scene))}}},
-                {"augment",
-                 {{"color_jitter", c.color_jitter},
-                  {"noise_std", c.noise_std},
-                  {"blur_prob", c.blur_prob},
-                  {"gray_prob", c.gray_prob},
-                  {"clutter_prob", c.clutter_prob},
-                  {"occluder_prob", c.occluder_prob},
-                  {"backgrounds", c.backgrounds},
-                  {"photo_prob", c.photo_prob},
-                  {"object_tone_prob", c.object_tone_prob}}},
-                {"model", {{"width", c.width}, {"init", c.init}}},
-                {"loss", {{"heat", c.w_heat}, {"size", c.w_size}, {"offset", c.w_offset}}},
-                {"optim", {{"lr", c.lr}}},
-                {"train",
-                 {{"steps", c.steps},
-                  {"batch", c.batch},
-                  {"checkpoint_every", c.checkpoint_every},
-                  {"log_every", c.log_every},
-                  {"time_limit_min", c.time_limit_min},
-                  {"time_schedule", c.time_schedule}}},
-                {"val",
-                 {{"root", c.val_root},
-                  {"split", c.val_split},
-                  {"every", c.val_every},
-                  {"max_frames", c.val_max_frames}}}};
+/// Every key of a detector config, once (as train/config.cpp's visit_config). IO is
+/// OrderedJsonReader (parse) or JsonWriter (print); the enum and the scene go through their
+/// text forms both ways.
+template <class IO>
+void visit_detector(IO& io, DetectorTrainConfig& c, const std::string& source) {
+    io.text("name", c.name);
+    io.integer("seed", c.seed);
+    io.integer("threads", c.threads);
+    io.text("device", c.device);
+    io.text("run_dir", c.run_dir);
+    io.object("data", [&](IO& d) {
+        d.text("models_root", c.models_root);
+        d.ints("object_ids", c.object_ids);
+        d.integer("downscale", c.downscale);
+        std::string input = nn::to_string(c.input);
+        d.text("input", input);
+        c.input = nn::parse_detector_input(input, source + ": data.input");
+        d.num("min_visib_fract", c.min_visib_fract);
+        d.text("distractors_root", c.distractors_root);
+        d.ints("distractor_ids", c.distractor_ids);
+        d.integer("distractor_colors", c.distractor_colors);
+        std::string scene = data::scene_config_to_json(c.scene);
+        d.raw_object("scene", scene);
+        c.scene = data::parse_scene_config(scene, source, "data.scene");
+    });
+    io.object("augment", [&](IO& a) {
+        a.num("color_jitter", c.color_jitter);
+        a.num("noise_std", c.noise_std);
+        a.num("blur_prob", c.blur_prob);
+        a.num("gray_prob", c.gray_prob);
+        a.num("clutter_prob", c.clutter_prob);
+        a.num("occluder_prob", c.occluder_prob);
+        a.texts("backgrounds", c.backgrounds);
+        a.num("photo_prob", c.photo_prob);
+        a.num("object_tone_prob", c.object_tone_prob);
+    });
+    io.object("model", [&](IO& m) {
+        m.integer("width", c.width);
+        m.text("init", c.init);
+    });
+    io.object("loss", [&](IO& l) {
+        l.num("heat", c.w_heat);
+        l.num("size", c.w_size);
+        l.num("offset", c.w_offset);
+    });
+    io.object("optim", [&](IO& o) { o.num("lr", c.lr); });
+    io.object("train", [&](IO& t) {
+        t.integer("steps", c.steps);
+        t.integer("batch", c.batch);
+        t.integer("checkpoint_every", c.checkpoint_every);
+        t.integer("log_every", c.log_every);
+        t.num("time_limit_min", c.time_limit_min);
+        t.boolean("time_schedule", c.time_schedule);
+    });
+    io.object("val", [&](IO& v) {
+        v.text("root", c.val_root);
+        v.text("split", c.val_split);
+        v.integer("every", c.val_every);
+        v.integer("max_frames", c.val_max_frames);
+    });
 }
 
 void validate(const DetectorTrainConfig& c, const std::string& where) {
@@ -122,70 +141,15 @@ void validate(const DetectorTrainConfig& c, const std::string& where) {
 
 DetectorTrainConfig parse_detector_config(const std::string& json_text, const std::string& source,
                                           const std::string& base_dir) {
-    const json root = parse_json_strict(json_text, source);
+    const nlohmann::ordered_json root = parse_json_strict_ordered(json_text, source);
     DetectorTrainConfig c;
-    JsonReader k(root, source);
+    OrderedJsonReader k(root, source);
     std::string task;
     k.require("task");
     k.text("task", task);
     G2L_CHECK(task == "detector", source, ": 'task' must be \"detector\" for a detector config, "
                                           "got \"", task, "\"");
-    k.text("name", c.name);
-    k.integer("seed", c.seed);
-    k.integer("threads", c.threads);
-    k.text("device", c.device);
-    k.text("run_dir", c.run_dir);
-    // Each section: an object whose keys are read by fill(), unknown keys refused.
-    k.object("data", [&](JsonReader& kd) {
-        kd.text("models_root", c.models_root);
-        kd.ints("object_ids", c.object_ids);
-        kd.integer("downscale", c.downscale);
-        std::string input = nn::to_string(c.input);
-        kd.text("input", input);
-        c.input = nn::parse_detector_input(input, source + ": data.input");
-        kd.num("min_visib_fract", c.min_visib_fract);
-        kd.text("distractors_root", c.distractors_root);
-        kd.ints("distractor_ids", c.distractor_ids);
-        kd.integer("distractor_colors", c.distractor_colors);
-        std::string scene;
-        kd.raw_object("scene", scene);
-        if (!scene.empty()) c.scene = data::parse_scene_config(scene, source, "data.scene");
-    });
-    k.object("augment", [&](JsonReader& ka) {
-        ka.num("color_jitter", c.color_jitter);
-        ka.num("noise_std", c.noise_std);
-        ka.num("blur_prob", c.blur_prob);
-        ka.num("gray_prob", c.gray_prob);
-        ka.num("clutter_prob", c.clutter_prob);
-        ka.num("occluder_prob", c.occluder_prob);
-        ka.texts("backgrounds", c.backgrounds);
-        ka.num("photo_prob", c.photo_prob);
-        ka.num("object_tone_prob", c.object_tone_prob);
-    });
-    k.object("model", [&](JsonReader& km) {
-        km.integer("width", c.width);
-        km.text("init", c.init);
-    });
-    k.object("loss", [&](JsonReader& kl) {
-        kl.num("heat", c.w_heat);
-        kl.num("size", c.w_size);
-        kl.num("offset", c.w_offset);
-    });
-    k.object("optim", [&](JsonReader& ko) { ko.num("lr", c.lr); });
-    k.object("train", [&](JsonReader& kt) {
-        kt.integer("steps", c.steps);
-        kt.integer("batch", c.batch);
-        kt.integer("checkpoint_every", c.checkpoint_every);
-        kt.integer("log_every", c.log_every);
-        kt.num("time_limit_min", c.time_limit_min);
-        kt.boolean("time_schedule", c.time_schedule);
-    });
-    k.object("val", [&](JsonReader& kv) {
-        kv.text("root", c.val_root);
-        kv.text("split", c.val_split);
-        kv.integer("every", c.val_every);
-        kv.integer("max_frames", c.val_max_frames);
-    });
+    visit_detector(k, c, source);
     k.finish();
     if (!c.models_root.empty()) c.models_root = resolve_config_path(c.models_root, base_dir);
     if (!c.val_root.empty()) c.val_root = resolve_config_path(c.val_root, base_dir);
@@ -199,7 +163,11 @@ DetectorTrainConfig parse_detector_config(const std::string& json_text, const st
 }
 
 std::string detector_config_to_json(const DetectorTrainConfig& cfg) {
-    return to_json(cfg).dump(2) + "\n";
+    DetectorTrainConfig c = cfg;
+    nlohmann::ordered_json j = {{"task", "detector"}};
+    JsonWriter w(j);
+    visit_detector(w, c, "detector_config_to_json");
+    return j.dump(2) + "\n";
 }
 
 bool is_detector_config(const std::string& path) {

@@ -29,6 +29,8 @@ public:
     void ints(const char* k, const std::vector<int>& v) { j_[k] = v; }
     void texts(const char* k, const std::vector<std::string>& v) { j_[k] = v; }
     void num3(const char* k, const std::array<double, 3>& v) { j_[k] = v; }
+    template <size_t N>
+    void nums(const char* k, const std::array<double, N>& v) { j_[k] = v; }
     void raw_object(const char* k, const std::string& v) {
         json x;
         try {

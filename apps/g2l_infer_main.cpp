@@ -509,22 +509,27 @@ int run_frame(Job& j, const std::vector<g2l::data::Detection>& dets) {
 
 /// A video, frame after frame in one process: a bad frame is reported and skipped (the
 /// tracker goes on from the last good one); the exit code says whether any failed.
-int run_sequence(Job& j, const std::vector<g2l::data::Detection>& dets) {
-    std::vector<g2l::data::SequenceFrame> frames;
-    int scene_id = j.scene_id;
-    if (!j.scene.empty()) {
-        frames = g2l::data::list_bop_scene(j.scene);
-        if (scene_id < 0) {  // BOP: the folder's name is the scene id
-            const std::string name = fs::path(j.scene).lexically_normal().filename().string();
-            const std::string stem = name.empty() ? fs::path(j.scene).parent_path().filename().string() : name;
-            char* end = nullptr;
-            const long v = std::strtol(stem.c_str(), &end, 10);
-            scene_id = !stem.empty() && *end == '\0' && v >= 0 && v < 1000000000 ? int(v) : 0;
-        }
-    } else {
-        frames = g2l::data::list_frames_file(j.frames, g2l::data::load_camera_file(j.camera, j.image_id));
-        scene_id = std::max(0, scene_id);
+/// The frames of --scene or --frames, and the scene id their CSV rows carry (--scene-id, else
+/// a BOP scene folder's name, else 0).
+std::vector<g2l::data::SequenceFrame> sequence_frames(const Job& j, int* scene_id) {
+    *scene_id = j.scene_id;
+    if (j.scene.empty()) {
+        *scene_id = std::max(0, *scene_id);
+        return g2l::data::list_frames_file(j.frames, g2l::data::load_camera_file(j.camera, j.image_id));
     }
+    if (*scene_id < 0) {  // BOP: the folder's name is the scene id
+        const std::string name = fs::path(j.scene).lexically_normal().filename().string();
+        const std::string stem = name.empty() ? fs::path(j.scene).parent_path().filename().string() : name;
+        char* end = nullptr;
+        const long v = std::strtol(stem.c_str(), &end, 10);
+        *scene_id = !stem.empty() && *end == '\0' && v >= 0 && v < 1000000000 ? int(v) : 0;
+    }
+    return g2l::data::list_bop_scene(j.scene);
+}
+
+int run_sequence(Job& j, const std::vector<g2l::data::Detection>& dets) {
+    int scene_id = 0;
+    const std::vector<g2l::data::SequenceFrame> frames = sequence_frames(j, &scene_id);
     const g2l::EstimatorOptions opt = estimator_options(j);
     g2l::PoseEstimator est(j.model, opt);
     std::unique_ptr<g2l::PoseTracker> tracker;

@@ -106,6 +106,24 @@ std::string progress_text(const LoopOptions& lo, const Report& at, const StepVal
     return out + b + format_duration(eta);
 }
 
+// The end of an epoch that ran to its end: the task's validation (not after a signal), the
+// epoch's record and line. Returns the validation score (< 0: none).
+double end_of_epoch(TrainTask& task, const RunDir& run, const LoopOptions& lo, const LoopState& s,
+                    bool interrupted, double lr, double seconds, bool progress) {
+    json ej = {{"epoch", s.epoch}, {"loss", s.epoch_loss / double(s.epoch_step)},
+               {"batches", s.epoch_step}, {"lr", lr}, {"seconds", seconds}};
+    const double val = interrupted ? -1 : task.end_epoch(s, ej);
+    if (!lo.epoch_log.empty()) run.append(lo.epoch_log, ej);
+    if (progress && lo.epochs > 1) {
+        std::printf("epoch %d/%d done: loss %.4f", s.epoch + 1, lo.epochs,
+                    s.epoch_loss / double(s.epoch_step));
+        if (val >= 0) std::printf(" validation %.2f", val);
+        std::printf("\n");
+        std::fflush(stdout);
+    }
+    return val;
+}
+
 }  // namespace
 
 double time_fitted_progress(const LoopState& s, double by_steps, double time_limit_min) {
@@ -197,17 +215,8 @@ LoopResult run_loop(TrainTask& task, const RunDir& run, const LoopOptions& lo,
         if (s.epoch_step < n) break;  // stopped inside the epoch (last.g2l saved)
 
         // ---- end of the epoch: validation, the epoch's record, checkpoints ----
-        json ej = {{"epoch", s.epoch}, {"loss", s.epoch_loss / double(s.epoch_step)},
-                   {"batches", s.epoch_step}, {"lr", adam.lr()}, {"seconds", since(t_epoch)}};
-        const double val = r.interrupted ? -1 : task.end_epoch(s, ej);
-        if (!lo.epoch_log.empty()) run.append(lo.epoch_log, ej);
-        if (progress && lo.epochs > 1) {
-            std::printf("epoch %d/%d done: loss %.4f", s.epoch + 1, lo.epochs,
-                        s.epoch_loss / double(s.epoch_step));
-            if (val >= 0) std::printf(" validation %.2f", val);
-            std::printf("\n");
-            std::fflush(stdout);
-        }
+        const double val = end_of_epoch(task, run, lo, s, r.interrupted, adam.lr(),
+                                        since(t_epoch), progress);
         ++s.epoch;
         s.epoch_step = 0;
         s.epoch_loss = 0;

@@ -178,368 +178,427 @@ EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
     return evaluate_instances(net, ds, class_of, keypoints, opt, nullptr);
 }
 
+namespace {
+
+// One evaluation's state: the frame pipeline the inference library runs
+// (infer/frame_pipeline.h: the same crop, networks and refinement; evaluation adds only the
+// ground truth and the oracle inputs), each object's metric geometry, the results so far and
+// the stage times. Two roads: gt_frame (a pose per ground-truth box) and matched_frame (the
+// library's hypotheses, or given poses, matched to the ground truth as BOP does).
+class Evaluation {
+public:
+    Evaluation(nn::G2LNet& net, const data::Dataset& ds, const std::map<int, int>& class_of,
+               const std::vector<std::vector<Eigen::Vector3f>>& keypoints, const EvalOptions& opt,
+               std::vector<HypothesisRecord>* hyps_out)
+        : ds_(ds), class_of_(class_of), opt_(opt), hyps_out_(hyps_out),
+          pipe_(pipeline_model(net, ds, class_of, keypoints, opt), pipeline_options(opt)) {
+        if (opt.detections) {
+            for (size_t i = 0; i < opt.detections->size(); ++i) {
+                const data::Detection& d = (*opt.detections)[i];
+                G2L_CHECK(d.scene_id >= 0 && d.image_id >= 0, "evaluate: detection ", i,
+                          " (object ", d.obj_id, ") has no scene_id / image_id: evaluation needs both");
+                infer::Candidate c;
+                c.obj_id = c.det_obj_id = d.obj_id;
+                c.box = {int(std::lround(d.x)), int(std::lround(d.y)), int(std::lround(d.w)),
+                         int(std::lround(d.h))};
+                c.peak_x = d.peak_x, c.peak_y = d.peak_y;
+                c.det_score = d.score;
+                frame_dets_[{d.scene_id, d.image_id}].push_back(c);
+            }
+        }
+        if (opt.poses)
+            for (const data::PoseRow& r : *opt.poses)
+                if (class_of.count(r.obj_id)) frame_poses_[{r.scene_id, r.image_id}].push_back(&r);
+        if (hyps_out_) hyps_out_->clear();
+        // The hypotheses road may pose any object of the model the dataset has a mesh of (a
+        // peak is also tried as the objects of a like shape).
+        if (matched_road())
+            for (const auto& [id, om] : ds.models())
+                if (class_of.count(id)) prepare(id), (void)om;
+    }
+
+    bool matched_road() const { return opt_.detections || opt_.poses; }
+    bool full() const { return opt_.max_instances > 0 && instances_ >= opt_.max_instances; }
+
+    void gt_frame(const data::Frame& f);
+    void matched_frame(const data::Frame& f);
+
+    EvalReport report(std::vector<InstanceResult>* instances_out) const {
+        EvalReport rep = aggregate(results_, meta_);
+        rep.refine = opt_.refine;
+        rep.oracle = opt_.oracle_seg ? (opt_.oracle_t ? "seg+t" : "seg") : opt_.oracle_t ? "t" : "none";
+        if (instances_out) *instances_out = results_;
+        if (instances_ > 0) {
+            const double n = instances_;
+            rep.ms_crop = t_crop_ / n, rep.ms_seg = t_seg_ / n, rep.ms_t = t_t_ / n;
+            rep.ms_rot = t_rot_ / n, rep.ms_refine = t_refine_ / n;
+        }
+        return rep;
+    }
+
+private:
+    static infer::PipelineModel pipeline_model(nn::G2LNet& net, const data::Dataset& ds,
+                                               const std::map<int, int>& class_of,
+                                               const std::vector<std::vector<Eigen::Vector3f>>& kp,
+                                               const EvalOptions& opt) {
+        infer::PipelineModel pm;
+        pm.net = &net;
+        pm.class_of = class_of;
+        pm.keypoints = kp;
+        pm.crop = infer::to_string(opt.crop);
+        pm.radius_scale = opt.radius_scale;
+        for (const auto& [id, om] : ds.models())
+            if (class_of.count(id)) pm.diameter[id] = om.info.diameter;
+        return pm;
+    }
+    static infer::PipelineOptions pipeline_options(const EvalOptions& opt) {
+        infer::PipelineOptions po;
+        po.crop_points = std::max(0, opt.crop_points);
+        po.object_points = opt.max_object_points;
+        po.refine = opt.refine;
+        return po;
+    }
+
+    // Once per object: its mesh in the pipeline, its metric points and symmetries.
+    void prepare(int obj_id) {
+        if (model_geom_.count(obj_id)) return;
+        const data::ObjectModel& om = ds_.model(obj_id);
+        const geom::Mesh& mesh = ds_.load_model_mesh(obj_id);
+        pipe_.add_mesh(obj_id, mesh, om.info);
+        const int64_t nv = mesh.vertices.rows();
+        const int64_t keep =
+            opt_.max_model_points > 0 ? std::min<int64_t>(nv, opt_.max_model_points) : nv;
+        ObjGeom g;
+        g.pts.resize(keep, 3);
+        for (int64_t i = 0; i < keep; ++i) g.pts.row(i) = mesh.vertices.row(i * nv / keep);
+        g.syms = geom::geometric_symmetries(*pipe_.mesh(obj_id)->tree, om.info);
+        meta_[obj_id] = {om.name, om.info.diameter, om.info.symmetric,
+                         int(std::max<size_t>(1, g.syms.size()))};
+        model_geom_[obj_id] = std::move(g);
+    }
+    void add_times(const infer::PoseOutcome& o) {
+        t_crop_ += o.ms_crop, t_seg_ += o.ms_seg, t_t_ += o.ms_t, t_rot_ += o.ms_rot;
+        t_refine_ += o.ms_refine;
+    }
+    // The frame's depth (mm) and its camera with the image size.
+    std::vector<float> frame_depth(const data::Frame& f, geom::Intrinsics* K) const {
+        int w = 0, h = 0;
+        std::vector<float> depth = ds_.load_depth_mm(f, &w, &h);
+        *K = f.K;
+        K->width = w, K->height = h;
+        return depth;
+    }
+
+    // The matched road's matching of one frame (hypotheses best first, accepted ones first).
+    struct Matching {
+        std::vector<int> est_of;      // GT -> hypothesis index (-1: none)
+        std::vector<int> gt_of;       // hypothesis -> GT index (-1: none)
+        std::vector<uint8_t> right;   // hypothesis right at ADD-S < 0.1 d
+        std::vector<uint8_t> box_hit; // 1: its box found a counted GT box, 2: an uncounted one
+    };
+    Matching match(const std::vector<const data::Instance*>& gts,
+                   const std::vector<uint8_t>& counted) const;
+    double adds_of(const infer::Hypothesis& hy, const data::Instance& gt) const {
+        return geom::adds(hy.outcome.pose, gt.pose, model_geom_.at(gt.obj_id).pts);
+    }
+    void record_hypotheses(const data::Frame& f, const std::vector<const data::Instance*>& gts,
+                           const std::vector<uint8_t>& counted, const Matching& m);
+
+    const data::Dataset& ds_;
+    const std::map<int, int>& class_of_;
+    const EvalOptions& opt_;
+    std::vector<HypothesisRecord>* hyps_out_;
+    infer::FramePipeline pipe_;
+    std::map<std::pair<int, int>, std::vector<infer::Candidate>> frame_dets_;
+    std::map<std::pair<int, int>, std::vector<const data::PoseRow*>> frame_poses_;
+    std::vector<InstanceResult> results_;
+    std::map<int, ObjectMeta> meta_;
+    std::map<int, ObjGeom> model_geom_;
+    int64_t instances_ = 0;  // counted GT instances
+    double t_crop_ = 0, t_seg_ = 0, t_t_ = 0, t_rot_ = 0, t_refine_ = 0;
+    std::vector<infer::Hypothesis> hyps_;
+};
+
+Evaluation::Matching Evaluation::match(const std::vector<const data::Instance*>& gts,
+                                       const std::vector<uint8_t>& counted) const {
+    const size_t ng = gts.size(), nh = hyps_.size();
+    Matching m{std::vector<int>(ng, -1), std::vector<int>(nh, -1), std::vector<uint8_t>(nh, 0),
+               std::vector<uint8_t>(nh, 0)};
+    // BOP matching: accepted poses by score; each takes the GT instance of its object it is
+    // right for (ADD-S < 0.1 d) with the smallest error.
+    for (size_t hi = 0; hi < nh && hyps_[hi].accepted(); ++hi) {
+        int best = -1;
+        double best_err = 0;
+        for (size_t g = 0; g < ng; ++g) {
+            if (m.est_of[g] >= 0 || gts[g]->obj_id != hyps_[hi].cand.obj_id) continue;
+            const double e = adds_of(hyps_[hi], *gts[g]);
+            if (geom::correct_at(e, meta_.at(gts[g]->obj_id).diameter) && (best < 0 || e < best_err))
+                best = int(g), best_err = e;
+        }
+        if (best >= 0) m.est_of[size_t(best)] = int(hi), m.gt_of[hi] = best, m.right[hi] = 1;
+    }
+    // Left-over instances take the nearest left-over pose of their object within a diameter
+    // (a wrong pose, its errors reported).
+    for (size_t hi = 0; hi < nh && hyps_[hi].accepted(); ++hi) {
+        if (m.gt_of[hi] >= 0) continue;
+        int best = -1;
+        double best_d = 0;
+        for (size_t g = 0; g < ng; ++g) {
+            if (m.est_of[g] >= 0 || gts[g]->obj_id != hyps_[hi].cand.obj_id) continue;
+            const double d = (hyps_[hi].outcome.pose.t - gts[g]->pose.t).norm();
+            if (d < meta_.at(gts[g]->obj_id).diameter && (best < 0 || d < best_d))
+                best = int(g), best_d = d;
+        }
+        if (best >= 0) m.est_of[size_t(best)] = int(hi), m.gt_of[hi] = best;
+    }
+    // Box hits (det_precision_50): each accepted pose's box against the visible GT boxes of
+    // its object, one box each, by score.
+    std::vector<uint8_t> box_taken(ng, 0);
+    for (size_t hi = 0; hi < nh && hyps_[hi].accepted(); ++hi) {
+        const geom::Box2i& b = hyps_[hi].outcome.box;
+        int best = -1;
+        double best_iou = 0.5;
+        for (size_t g = 0; g < ng; ++g) {
+            if (box_taken[g] || gts[g]->obj_id != hyps_[hi].cand.obj_id) continue;
+            const geom::Box2i gb = gts[g]->box();
+            const double iou = geom::box_iou(b.x, b.y, b.w, b.h, gb.x, gb.y, gb.w, gb.h);
+            if (iou >= best_iou) best = int(g), best_iou = iou;
+        }
+        if (best >= 0) {
+            box_taken[size_t(best)] = 1;
+            // A box that only finds an uncounted instance is neither hit nor miss.
+            m.box_hit[hi] = counted[size_t(best)] ? 1 : 2;
+        }
+    }
+    return m;
+}
+
+void Evaluation::record_hypotheses(const data::Frame& f,
+                                   const std::vector<const data::Instance*>& gts,
+                                   const std::vector<uint8_t>& counted, const Matching& m) {
+    for (size_t hi = 0; hi < hyps_.size(); ++hi) {
+        const infer::Hypothesis& hy = hyps_[hi];
+        if (hyps_out_) {
+            HypothesisRecord rec;
+            rec.scene = f.scene;
+            rec.image_id = f.image_id;
+            rec.obj_id = hy.cand.obj_id;
+            rec.score = hy.score;
+            rec.det_score = hy.cand.det_score;
+            rec.verdict = infer::to_string(hy.verdict);
+            rec.rival = hy.rival;
+            rec.right = m.right[hi] && counted[size_t(m.gt_of[hi])];
+            rec.box = hy.outcome.box;
+            rec.posed = hy.outcome.ok();
+            if (rec.posed) {
+                rec.est = hy.outcome.pose;
+                for (const data::Instance* g : gts)
+                    rec.pose_right = rec.pose_right ||
+                                     (g->obj_id == hy.cand.obj_id &&
+                                      geom::correct_at(adds_of(hy, *g), meta_.at(hy.cand.obj_id).diameter));
+            }
+            rec.verified = hy.verified;
+            if (hy.verified)
+                rec.features = infer::ScoreModel::features(hy.check, hy.cand.det_score,
+                                                           hy.cand.det_obj_id != hy.cand.obj_id);
+            hyps_out_->push_back(rec);
+        }
+        // An accepted pose matched to no instance is a false positive; one matched to an
+        // uncounted instance (or whose box found only one) is left out.
+        if (!hy.accepted() || m.gt_of[hi] >= 0 || m.box_hit[hi] == 2) continue;
+        InstanceResult r;
+        r.obj_id = hy.cand.obj_id;
+        r.scene = f.scene;
+        r.image_id = f.image_id;
+        r.inst_index = -1;
+        r.status = "false positive";
+        set_reported(hy, &r);
+        r.box = hy.outcome.box;
+        r.false_positive = true;
+        r.box_hit = m.box_hit[hi] == 1;
+        results_.push_back(r);
+    }
+}
+
+void Evaluation::matched_frame(const data::Frame& f) {
+    int scene_id = -1;
+    try {
+        scene_id = std::stoi(f.scene);
+    } catch (const std::exception&) {
+        G2L_CHECK(false, "evaluate: scene '", f.scene, "' is not a number (BOP scene ids are), so "
+                  "detections cannot be matched to it");
+    }
+    // Every GT instance of a known object takes part in the matching; those below
+    // min_visib_fract (or past max_instances) are not counted: an estimate matched to one is
+    // neither right nor a false positive (BOP's rule).
+    std::vector<const data::Instance*> gts;
+    std::vector<uint8_t> counted;
+    for (const data::Instance& inst : f.instances) {
+        if (!class_of_.count(inst.obj_id)) continue;
+        prepare(inst.obj_id);
+        const bool c = inst.visible_enough(opt_.min_visib_fract) && !full();
+        gts.push_back(&inst);
+        counted.push_back(c);
+        instances_ += c;
+    }
+    geom::Intrinsics K;
+    const std::vector<float> depth = frame_depth(f, &K);
+    const auto fd = frame_dets_.find({scene_id, f.image_id});
+    const std::vector<infer::Candidate> cands =
+        fd == frame_dets_.end() ? std::vector<infer::Candidate>{}
+                                : pipe_.candidates(fd->second, opt_.hypotheses);
+    if (opt_.poses)
+        given_poses(frame_poses_[{scene_id, f.image_id}], ds_, K, &hyps_);
+    else
+        pipe_.hypotheses(depth.data(), K, cands, opt_.hypotheses, &hyps_);
+    for (const infer::Hypothesis& hy : hyps_) add_times(hy.outcome);
+    const Matching m = match(gts, counted);
+    for (size_t g = 0; g < gts.size(); ++g) {
+        if (!counted[g]) continue;
+        const data::Instance& inst = *gts[g];
+        InstanceResult r;
+        r.obj_id = inst.obj_id;
+        r.scene = f.scene;
+        r.image_id = f.image_id;
+        r.inst_index = int(&inst - f.instances.data());
+        r.gt = inst.pose;
+        r.det_iou = 0;
+        r.box = geom::clip_box(inst.box(), K.width, K.height);
+        if (m.est_of[g] < 0) {
+            r.status = opt_.poses ? "no estimate" : cands.empty() ? "no detection" : "no pose";
+            results_.push_back(r);
+            continue;
+        }
+        const infer::Hypothesis& hy = hyps_[size_t(m.est_of[g])];
+        const infer::PoseOutcome& o = hy.outcome;
+        r.status = infer::to_string(o.status);
+        r.box = o.box;
+        const geom::Box2i gb = inst.box();
+        r.det_iou = geom::box_iou(o.box.x, o.box.y, o.box.w, o.box.h, gb.x, gb.y, gb.w, gb.h);
+        set_reported(hy, &r);
+        r.ms = o.ms_crop + o.ms_seg + o.ms_t + o.ms_rot + o.ms_refine;
+        r.refine_hyp = o.refine_hypothesis;
+        r.refine_cluster = o.refine_cluster;
+        r.fit_mm = o.fit_mm;
+        r.right = m.right[size_t(m.est_of[g])];
+        r.box_hit = m.box_hit[size_t(m.est_of[g])] == 1;
+        set_errors(o.pose, inst.pose, model_geom_.at(inst.obj_id), &r);
+        results_.push_back(r);
+    }
+    record_hypotheses(f, gts, counted, m);
+}
+
+void Evaluation::gt_frame(const data::Frame& f) {
+    std::vector<const data::Instance*> insts;  // this frame's evaluated instances
+    for (const data::Instance& inst : f.instances) {
+        if (!class_of_.count(inst.obj_id) || !inst.visible_enough(opt_.min_visib_fract)) continue;
+        if (full()) break;
+        insts.push_back(&inst);
+        instances_++;
+    }
+    if (insts.empty()) return;
+    geom::Intrinsics K;
+    const std::vector<float> depth = frame_depth(f, &K);
+    std::vector<InstanceResult> res(insts.size());
+    std::vector<infer::PoseRequest> reqs;  // the boxes the pipeline poses
+    std::vector<size_t> req_of;            // index in insts of each request
+    for (size_t k = 0; k < insts.size(); ++k) {
+        const data::Instance& inst = *insts[k];
+        prepare(inst.obj_id);
+        InstanceResult& r = res[k];
+        r.obj_id = inst.obj_id;
+        r.scene = f.scene;
+        r.image_id = f.image_id;
+        r.inst_index = int(&inst - f.instances.data());
+        r.gt = inst.pose;
+        infer::PoseRequest q;
+        q.obj_id = inst.obj_id;
+        q.box = inst.box();
+        if (opt_.centre_from_mask && opt_.crop != infer::CropKind::frustum) {
+            Eigen::Vector3d c;
+            const geom::Box2i box = geom::clip_box(q.box, K.width, K.height);
+            r.box = box;
+            if (box.empty()) {
+                r.status = "box outside image";
+                continue;
+            }
+            if (!sphere_centre(ds_, f, inst, depth, K.width, K.height, box, &c)) {
+                r.status = "no depth";
+                continue;
+            }
+            q.centre = c;
+        }
+        reqs.push_back(q);
+        req_of.push_back(k);
+    }
+    std::vector<infer::PoseOutcome> outs;
+    pipe_.crop(depth.data(), K, reqs, &outs);
+    // The ground-truth object points of each crop (training's label rule; outside the timed
+    // stages): the seg IoU, and the oracle inputs when asked for.
+    std::vector<std::vector<uint8_t>> gt_obj(reqs.size());
+    std::vector<Eigen::Vector3f> gt_t(reqs.size());
+    std::vector<infer::Oracle> oracles(reqs.size());
+    for (size_t i = 0; i < reqs.size(); ++i) {
+        if (!outs[i].ok()) continue;
+        const data::Instance& inst = *insts[req_of[i]];
+        gt_obj[i] = pipe_.mesh(inst.obj_id)->tree->label_points(outs[i].crop, inst.pose,
+                                                                float(opt_.label_threshold_mm));
+        gt_t[i] = inst.pose.t.cast<float>();
+        if (opt_.oracle_seg) oracles[i].object_mask = &gt_obj[i];
+        if (opt_.oracle_t) oracles[i].translation = &gt_t[i];
+    }
+    pipe_.estimate(depth.data(), K, &outs, &oracles);
+    for (size_t i = 0; i < reqs.size(); ++i) {
+        const infer::PoseOutcome& o = outs[i];
+        const data::Instance& inst = *insts[req_of[i]];
+        InstanceResult& r = res[req_of[i]];
+        r.box = o.box;
+        r.status = infer::to_string(o.status);
+        r.ms = o.ms_crop + o.ms_seg + o.ms_t + o.ms_rot + o.ms_refine;
+        add_times(o);
+        if (o.num_crop_points > 0 && !gt_obj[i].empty()) {
+            const int n_seen = opt_.crop_points > 0 ? opt_.crop_points : int(o.crop.rows());
+            r.seg_iou = rows_iou(nn::even_sample(int(o.crop.rows()), n_seen), o.object_rows, gt_obj[i]);
+        }
+        if (!o.ok()) continue;
+        if (o.refined) {
+            geom::Points obs(int64_t(o.object_rows.size()), 3);
+            for (size_t j = 0; j < o.object_rows.size(); ++j)
+                obs.row(int64_t(j)) = o.crop.row(o.object_rows[j]);
+            r.refine_hyp = o.refine_hypothesis;
+            r.refine_cluster = o.refine_cluster;
+            r.fit_mm = o.fit_mm;
+            r.gt_fit_mm = geom::fit_error(*pipe_.mesh(inst.obj_id)->tree, obs, inst.pose,
+                                          0.1 * meta_.at(inst.obj_id).diameter);
+        }
+        r.est = o.pose;
+        r.found = true;
+        set_errors(o.pose, inst.pose, model_geom_[inst.obj_id], &r);
+    }
+    results_.insert(results_.end(), res.begin(), res.end());
+}
+
+}  // namespace
+
 EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
                               const std::map<int, int>& class_of,
                               const std::vector<std::vector<Eigen::Vector3f>>& keypoints,
                               const EvalOptions& opt, std::vector<InstanceResult>* instances_out,
                               std::vector<HypothesisRecord>* hyps_out) {
-    // Detector boxes: each frame's detections, the hypotheses road's candidates.
-    std::map<std::pair<int, int>, std::vector<infer::Candidate>> frame_dets;
-    if (opt.detections) {
-        for (size_t i = 0; i < opt.detections->size(); ++i) {
-            const data::Detection& d = (*opt.detections)[i];
-            G2L_CHECK(d.scene_id >= 0 && d.image_id >= 0, "evaluate: detection ", i,
-                      " (object ", d.obj_id, ") has no scene_id / image_id: evaluation needs both");
-            infer::Candidate c;
-            c.obj_id = c.det_obj_id = d.obj_id;
-            c.box = {int(std::lround(d.x)), int(std::lround(d.y)), int(std::lround(d.w)),
-                     int(std::lround(d.h))};
-            c.peak_x = d.peak_x, c.peak_y = d.peak_y;
-            c.det_score = d.score;
-            frame_dets[{d.scene_id, d.image_id}].push_back(c);
-        }
-    }
-    std::map<std::pair<int, int>, std::vector<const data::PoseRow*>> frame_poses;
-    if (opt.poses)
-        for (const data::PoseRow& r : *opt.poses)
-            if (class_of.count(r.obj_id)) frame_poses[{r.scene_id, r.image_id}].push_back(&r);
-    const bool matched_road = opt.detections || opt.poses;
-    if (hyps_out) hyps_out->clear();
-    // The frame pipeline the inference library runs (infer/frame_pipeline.h): the same crop,
-    // networks and refinement; evaluation adds only the ground truth and the oracle inputs.
-    infer::PipelineModel pm;
-    pm.net = &net;
-    pm.class_of = class_of;
-    pm.keypoints = keypoints;
-    pm.crop = infer::to_string(opt.crop);
-    pm.radius_scale = opt.radius_scale;
-    for (const auto& [id, om] : ds.models())
-        if (class_of.count(id)) pm.diameter[id] = om.info.diameter;
-    infer::PipelineOptions po;
-    po.crop_points = std::max(0, opt.crop_points);
-    po.object_points = opt.max_object_points;
-    po.refine = opt.refine;
     const bool was_training = net.is_training();
     net.eval();
     autograd::NoGradGuard no_grad;
-    infer::FramePipeline pipe(std::move(pm), po);
-    std::vector<InstanceResult> results;
-    std::map<int, ObjectMeta> meta;
-    std::map<int, ObjGeom> model_geom;
     EvalReport rep;
-    double t_crop = 0, t_seg = 0, t_t = 0, t_rot = 0, t_refine = 0;
-    std::vector<const data::Instance*> insts;  // this frame's evaluated instances
-    std::vector<InstanceResult> res;           // their results
-    std::vector<infer::PoseRequest> reqs;      // the boxes the pipeline poses
-    std::vector<size_t> req_of;                // index in insts of each request
-    std::vector<infer::PoseOutcome> outs;
-    std::vector<std::vector<uint8_t>> gt_obj;  // per request: GT object flags of its crop rows
-    std::vector<Eigen::Vector3f> gt_t;
-    std::vector<infer::Oracle> oracles;
-    // Once per object: its mesh in the pipeline, its metric points and symmetries.
-    auto prepare = [&](int obj_id) {
-        if (model_geom.count(obj_id)) return;
-        const data::ObjectModel& om = ds.model(obj_id);
-        const geom::Mesh& mesh = ds.load_model_mesh(obj_id);
-        pipe.add_mesh(obj_id, mesh, om.info);
-        const int64_t nv = mesh.vertices.rows();
-        const int64_t keep =
-            opt.max_model_points > 0 ? std::min<int64_t>(nv, opt.max_model_points) : nv;
-        ObjGeom g;
-        g.pts.resize(keep, 3);
-        for (int64_t i = 0; i < keep; ++i) g.pts.row(i) = mesh.vertices.row(i * nv / keep);
-        g.syms = geom::geometric_symmetries(*pipe.mesh(obj_id)->tree, om.info);
-        meta[obj_id] = {om.name, om.info.diameter, om.info.symmetric,
-                        int(std::max<size_t>(1, g.syms.size()))};
-        model_geom[obj_id] = std::move(g);
-    };
-    // The hypotheses road may pose any object of the model the dataset has a mesh of (a peak is
-    // also tried as the objects of a like shape).
-    if (matched_road)
-        for (const auto& [id, om] : ds.models())
-            if (class_of.count(id)) prepare(id), (void)om;
-    std::vector<infer::Hypothesis> hyps;
-    for (const data::Frame& f : ds.frames()) {
-        if (opt.max_instances > 0 && rep.instances >= opt.max_instances) break;
-        if (matched_road) {  // the library's road (or given poses), matched to the ground truth
-            int scene_id = -1;
-            try {
-                scene_id = std::stoi(f.scene);
-            } catch (const std::exception&) {
-                G2L_CHECK(false, "evaluate: scene '", f.scene, "' is not a number (BOP scene ids "
-                          "are), so detections cannot be matched to it");
-            }
-            // Every GT instance of a known object takes part in the matching; those below
-            // min_visib_fract (or past max_instances) are not counted: an estimate matched to
-            // one is neither right nor a false positive (BOP's rule).
-            std::vector<const data::Instance*> gts;
-            std::vector<uint8_t> counted;
-            for (const data::Instance& inst : f.instances) {
-                if (!class_of.count(inst.obj_id)) continue;
-                prepare(inst.obj_id);
-                const bool c = inst.visible_enough(opt.min_visib_fract) &&
-                               !(opt.max_instances > 0 && rep.instances >= opt.max_instances);
-                gts.push_back(&inst);
-                counted.push_back(c);
-                rep.instances += c;
-            }
-            int w = 0, h = 0;
-            const std::vector<float> depth = ds.load_depth_mm(f, &w, &h);
-            geom::Intrinsics K = f.K;
-            K.width = w;
-            K.height = h;
-            const auto fd = frame_dets.find({scene_id, f.image_id});
-            const std::vector<infer::Candidate> cands =
-                fd == frame_dets.end() ? std::vector<infer::Candidate>{}
-                                       : pipe.candidates(fd->second, opt.hypotheses);
-            if (opt.poses)
-                given_poses(frame_poses[{scene_id, f.image_id}], ds, K, &hyps);
+    {
+        Evaluation ev(net, ds, class_of, keypoints, opt, hyps_out);
+        for (const data::Frame& f : ds.frames()) {
+            if (ev.full()) break;
+            if (ev.matched_road())
+                ev.matched_frame(f);
             else
-                pipe.hypotheses(depth.data(), K, cands, opt.hypotheses, &hyps);
-            for (const infer::Hypothesis& hy : hyps) {
-                const infer::PoseOutcome& o = hy.outcome;
-                t_crop += o.ms_crop, t_seg += o.ms_seg, t_t += o.ms_t, t_rot += o.ms_rot;
-                t_refine += o.ms_refine;
-            }
-            // BOP matching: accepted poses by score (hyps lists them first, best first).
-            const size_t ng = gts.size();
-            std::vector<int> est_of(ng, -1);     // GT -> hypothesis index
-            std::vector<int> gt_of(hyps.size(), -1);
-            std::vector<uint8_t> right(hyps.size(), 0);
-            auto adds_of = [&](size_t hi, size_t g) {
-                return geom::adds(hyps[hi].outcome.pose, gts[g]->pose,
-                                  model_geom.at(gts[g]->obj_id).pts);
-            };
-            for (size_t hi = 0; hi < hyps.size() && hyps[hi].accepted(); ++hi) {
-                int best = -1;
-                double best_err = 0;
-                for (size_t g = 0; g < ng; ++g) {
-                    if (est_of[g] >= 0 || gts[g]->obj_id != hyps[hi].cand.obj_id) continue;
-                    const double e = adds_of(hi, g);
-                    if (geom::correct_at(e, meta.at(gts[g]->obj_id).diameter) &&
-                        (best < 0 || e < best_err))
-                        best = int(g), best_err = e;
-                }
-                if (best >= 0) est_of[size_t(best)] = int(hi), gt_of[hi] = best, right[hi] = 1;
-            }
-            // Left-over instances take the nearest left-over pose of their object within a
-            // diameter (a wrong pose, its errors reported), most visible instances first.
-            for (size_t hi = 0; hi < hyps.size() && hyps[hi].accepted(); ++hi) {
-                if (gt_of[hi] >= 0) continue;
-                int best = -1;
-                double best_d = 0;
-                for (size_t g = 0; g < ng; ++g) {
-                    if (est_of[g] >= 0 || gts[g]->obj_id != hyps[hi].cand.obj_id) continue;
-                    const double d = (hyps[hi].outcome.pose.t - gts[g]->pose.t).norm();
-                    if (d < meta.at(gts[g]->obj_id).diameter && (best < 0 || d < best_d))
-                        best = int(g), best_d = d;
-                }
-                if (best >= 0) est_of[size_t(best)] = int(hi), gt_of[hi] = best;
-            }
-            // Box hits (det_precision_50): each accepted pose's box against the visible GT
-            // boxes of its object, one box each, by score.
-            std::vector<uint8_t> box_taken(ng, 0), box_hit(hyps.size(), 0);
-            std::vector<double> box_iou_of(hyps.size(), 0.0);
-            for (size_t hi = 0; hi < hyps.size() && hyps[hi].accepted(); ++hi) {
-                const geom::Box2i& b = hyps[hi].outcome.box;
-                int best = -1;
-                double best_iou = 0.5;
-                for (size_t g = 0; g < ng; ++g) {
-                    if (box_taken[g] || gts[g]->obj_id != hyps[hi].cand.obj_id) continue;
-                    const geom::Box2i gb = gts[g]->box();
-                    const double iou = geom::box_iou(b.x, b.y, b.w, b.h, gb.x, gb.y, gb.w, gb.h);
-                    if (iou >= best_iou) best = int(g), best_iou = iou;
-                }
-                if (best >= 0) {
-                    box_taken[size_t(best)] = 1;
-                    // A box that only finds an uncounted instance is neither hit nor miss.
-                    box_hit[hi] = counted[size_t(best)] ? 1 : 2;
-                }
-            }
-            for (size_t g = 0; g < ng; ++g) {
-                if (!counted[g]) continue;
-                const data::Instance& inst = *gts[g];
-                InstanceResult r;
-                r.obj_id = inst.obj_id;
-                r.scene = f.scene;
-                r.image_id = f.image_id;
-                r.inst_index = int(&inst - f.instances.data());
-                r.gt = inst.pose;
-                r.det_iou = 0;
-                r.box = geom::clip_box(inst.box(), w, h);
-                if (est_of[g] < 0) {
-                    r.status = opt.poses ? "no estimate" : cands.empty() ? "no detection" : "no pose";
-                    results.push_back(r);
-                    continue;
-                }
-                const infer::Hypothesis& hy = hyps[size_t(est_of[g])];
-                const infer::PoseOutcome& o = hy.outcome;
-                const ObjGeom& og = model_geom.at(inst.obj_id);
-                r.status = infer::to_string(o.status);
-                r.box = o.box;
-                const geom::Box2i gb = inst.box();
-                r.det_iou = geom::box_iou(o.box.x, o.box.y, o.box.w, o.box.h, gb.x, gb.y, gb.w,
-                                          gb.h);
-                set_reported(hy, &r);
-                r.ms = o.ms_crop + o.ms_seg + o.ms_t + o.ms_rot + o.ms_refine;
-                r.refine_hyp = o.refine_hypothesis;
-                r.refine_cluster = o.refine_cluster;
-                r.fit_mm = o.fit_mm;
-                r.right = right[size_t(est_of[g])];
-                r.box_hit = box_hit[size_t(est_of[g])] == 1;
-                set_errors(o.pose, inst.pose, og, &r);
-                results.push_back(r);
-            }
-            for (size_t hi = 0; hi < hyps.size(); ++hi) {
-                const infer::Hypothesis& hy = hyps[hi];
-                if (hyps_out) {
-                    HypothesisRecord rec;
-                    rec.scene = f.scene;
-                    rec.image_id = f.image_id;
-                    rec.obj_id = hy.cand.obj_id;
-                    rec.score = hy.score;
-                    rec.det_score = hy.cand.det_score;
-                    rec.verdict = infer::to_string(hy.verdict);
-                    rec.rival = hy.rival;
-                    rec.right = right[hi] && counted[size_t(gt_of[hi])];
-                    rec.box = hy.outcome.box;
-                    rec.posed = hy.outcome.ok();
-                    if (rec.posed) {
-                        rec.est = hy.outcome.pose;
-                        for (size_t g = 0; g < ng; ++g)
-                            rec.pose_right = rec.pose_right ||
-                                             (gts[g]->obj_id == hy.cand.obj_id &&
-                                              geom::correct_at(adds_of(hi, g),
-                                                               meta.at(hy.cand.obj_id).diameter));
-                    }
-                    rec.verified = hy.verified;
-                    if (hy.verified)
-                        rec.features = infer::ScoreModel::features(
-                            hy.check, hy.cand.det_score, hy.cand.det_obj_id != hy.cand.obj_id);
-                    hyps_out->push_back(rec);
-                }
-                // An accepted pose matched to no instance is a false positive; one matched to
-                // an uncounted instance (or whose box found only one) is left out.
-                if (!hy.accepted() || gt_of[hi] >= 0 || box_hit[hi] == 2) continue;
-                InstanceResult r;
-                r.obj_id = hy.cand.obj_id;
-                r.scene = f.scene;
-                r.image_id = f.image_id;
-                r.inst_index = -1;
-                r.status = "false positive";
-                set_reported(hy, &r);
-                r.box = hy.outcome.box;
-                r.false_positive = true;
-                r.box_hit = box_hit[hi] == 1;
-                results.push_back(r);
-            }
-            continue;
+                ev.gt_frame(f);
         }
-        insts.clear();
-        for (const data::Instance& inst : f.instances) {
-            if (!class_of.count(inst.obj_id) || !inst.visible_enough(opt.min_visib_fract)) continue;
-            if (opt.max_instances > 0 && rep.instances >= opt.max_instances) break;
-            insts.push_back(&inst);
-            rep.instances++;
-        }
-        if (insts.empty()) continue;
-        int w = 0, h = 0;
-        const std::vector<float> depth = ds.load_depth_mm(f, &w, &h);
-        geom::Intrinsics K = f.K;
-        K.width = w;
-        K.height = h;
-        res.assign(insts.size(), InstanceResult{});
-        reqs.clear();
-        req_of.clear();
-        for (size_t k = 0; k < insts.size(); ++k) {
-            const data::Instance& inst = *insts[k];
-            prepare(inst.obj_id);
-            InstanceResult& r = res[k];
-            r.obj_id = inst.obj_id;
-            r.scene = f.scene;
-            r.image_id = f.image_id;
-            r.inst_index = int(&inst - f.instances.data());
-            r.gt = inst.pose;
-            infer::PoseRequest q;
-            q.obj_id = inst.obj_id;
-            q.box = inst.box();
-            if (opt.centre_from_mask && opt.crop != infer::CropKind::frustum) {
-                Eigen::Vector3d c;
-                const geom::Box2i box = geom::clip_box(q.box, w, h);
-                r.box = box;
-                if (box.empty()) {
-                    r.status = "box outside image";
-                    continue;
-                }
-                if (!sphere_centre(ds, f, inst, depth, w, h, box, &c)) {
-                    r.status = "no depth";
-                    continue;
-                }
-                q.centre = c;
-            }
-            reqs.push_back(q);
-            req_of.push_back(k);
-        }
-        pipe.crop(depth.data(), K, reqs, &outs);
-        // The ground-truth object points of each crop (training's label rule; outside the
-        // timed stages): the seg IoU, and the oracle inputs when asked for.
-        gt_obj.assign(reqs.size(), {});
-        gt_t.resize(reqs.size());
-        oracles.assign(reqs.size(), infer::Oracle{});
-        for (size_t i = 0; i < reqs.size(); ++i) {
-            if (!outs[i].ok()) continue;
-            const data::Instance& inst = *insts[req_of[i]];
-            gt_obj[i] = pipe.mesh(inst.obj_id)->tree->label_points(outs[i].crop, inst.pose,
-                                                                   float(opt.label_threshold_mm));
-            gt_t[i] = inst.pose.t.cast<float>();
-            if (opt.oracle_seg) oracles[i].object_mask = &gt_obj[i];
-            if (opt.oracle_t) oracles[i].translation = &gt_t[i];
-        }
-        pipe.estimate(depth.data(), K, &outs, &oracles);
-        for (size_t i = 0; i < reqs.size(); ++i) {
-            const infer::PoseOutcome& o = outs[i];
-            const data::Instance& inst = *insts[req_of[i]];
-            InstanceResult& r = res[req_of[i]];
-            r.box = o.box;
-            r.status = infer::to_string(o.status);
-            r.ms = o.ms_crop + o.ms_seg + o.ms_t + o.ms_rot + o.ms_refine;
-            t_crop += o.ms_crop;
-            t_seg += o.ms_seg;
-            t_t += o.ms_t;
-            t_rot += o.ms_rot;
-            t_refine += o.ms_refine;
-            if (o.num_crop_points > 0 && !gt_obj[i].empty()) {
-                const int n_seen = opt.crop_points > 0 ? opt.crop_points : int(o.crop.rows());
-                r.seg_iou = rows_iou(nn::even_sample(int(o.crop.rows()), n_seen), o.object_rows,
-                                     gt_obj[i]);
-            }
-            if (!o.ok()) continue;
-            const ObjGeom& og = model_geom[inst.obj_id];
-            if (o.refined) {
-                geom::Points obs(int64_t(o.object_rows.size()), 3);
-                for (size_t j = 0; j < o.object_rows.size(); ++j)
-                    obs.row(int64_t(j)) = o.crop.row(o.object_rows[j]);
-                r.refine_hyp = o.refine_hypothesis;
-                r.refine_cluster = o.refine_cluster;
-                r.fit_mm = o.fit_mm;
-                r.gt_fit_mm = geom::fit_error(*pipe.mesh(inst.obj_id)->tree, obs, inst.pose,
-                                              0.1 * meta.at(inst.obj_id).diameter);
-            }
-            r.est = o.pose;
-            r.found = true;
-            set_errors(o.pose, inst.pose, og, &r);
-        }
-        results.insert(results.end(), res.begin(), res.end());
-    }
-    const double n_inst = rep.instances;
-    rep = aggregate(results, meta);
-    rep.refine = opt.refine;
-    rep.oracle = opt.oracle_seg ? (opt.oracle_t ? "seg+t" : "seg") : opt.oracle_t ? "t" : "none";
-    if (instances_out) *instances_out = results;
-    if (n_inst > 0) {
-        rep.ms_crop = t_crop / n_inst; rep.ms_seg = t_seg / n_inst;
-        rep.ms_t = t_t / n_inst; rep.ms_rot = t_rot / n_inst;
-        rep.ms_refine = t_refine / n_inst;
+        rep = ev.report(instances_out);
     }
     net.train(was_training);
     return rep;

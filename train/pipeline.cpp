@@ -193,6 +193,91 @@ RotationInput gt_rotation_input(const std::vector<PoseSample>& samples, int64_t 
     return in;
 }
 
+namespace {
+
+// Block C's target base online (G2L-Net §3.4): R_hat = Kabsch(model keypoints -> predicted
+// keypoints, detached), base = R_hat * model keypoints + t_hat, t_hat aligning the centroids
+// (the inputs may be centred off the object's origin: centre noise / predicted T). Block C's
+// corrected keypoints are base + residual.
+Tensor residual_base(const Tensor& pred_kp, const std::vector<PoseSample>& samples,
+                     const KeypointTable& keypoints, int K) {
+    const int64_t B = int64_t(samples.size());
+    Tensor model_kp = Tensor::empty({B, K, 3});
+    for (int64_t b = 0; b < B; ++b)
+        for (int k = 0; k < K; ++k)
+            for (int c = 0; c < 3; ++c)
+                model_kp.data<float>()[(b * K + k) * 3 + c] =
+                    keypoints[size_t(samples[size_t(b)].class_index)][size_t(k)][c];
+    Tensor Rhat = Tensor::empty({B, 3, 3});
+    geom::kabsch_batched(model_kp.data<float>(), pred_kp.data<float>(), int(B), K,
+                         Rhat.data<float>());
+    Tensor base = Tensor::empty({B, K, 3});
+    for (int64_t b = 0; b < B; ++b) {
+        const Eigen::Map<const Eigen::Matrix<float, 3, 3, Eigen::RowMajor>> R(
+            Rhat.data<float>() + b * 9);
+        Eigen::Vector3f cm = Eigen::Vector3f::Zero(), cp = Eigen::Vector3f::Zero();
+        for (int k = 0; k < K; ++k) {
+            cm += Eigen::Map<const Eigen::Vector3f>(model_kp.data<float>() + (b * K + k) * 3);
+            cp += Eigen::Map<const Eigen::Vector3f>(pred_kp.data<float>() + (b * K + k) * 3);
+        }
+        const Eigen::Vector3f th = (cp - R * cm) / float(K);
+        for (int k = 0; k < K; ++k) {
+            const Eigen::Map<const Eigen::Vector3f> p(model_kp.data<float>() + (b * K + k) * 3);
+            Eigen::Map<Eigen::Vector3f>(base.data<float>() + (b * K + k) * 3) = R * p + th;
+        }
+    }
+    return base;
+}
+
+// Checks each sample's class has its keypoints (and symmetric sets), and with a rotation unit
+// other than mm fills the per-sample unit (mm per unit) and its inverse, [B, 1, 1].
+void rotation_scales(const nn::G2LNet& net, const std::vector<PoseSample>& samples,
+                     const KeypointTable& keypoints, const SymmetricKeypoints* symmetric,
+                     const StepOptions& opt, Tensor* scale, Tensor* inv_scale) {
+    const int64_t B = int64_t(samples.size());
+    const int K = net.config().num_keypoints;
+    const bool unit = net.config().rot_unit != "mm";
+    std::vector<float> sc(static_cast<size_t>(B), 1.f);
+    for (int64_t b = 0; b < B; ++b) {
+        const int cls = samples[size_t(b)].class_index;
+        G2L_CHECK(cls >= 0 && cls < int(keypoints.size()) &&
+                      int(keypoints[size_t(cls)].size()) == K,
+                  "g2l_step: no ", K, " keypoints for class index ", cls);
+        if (symmetric)
+            G2L_CHECK(cls < int(symmetric->size()) && !(*symmetric)[size_t(cls)].empty(),
+                      "g2l_step: no symmetric keypoint sets for class index ", cls);
+        if (unit) {
+            G2L_CHECK(cls < int(opt.rot_scale.size()) && opt.rot_scale[size_t(cls)] > 0,
+                      "g2l_step: rot_unit '", net.config().rot_unit,
+                      "' needs a rotation scale for class index ", cls);
+            sc[size_t(b)] = opt.rot_scale[size_t(cls)];
+        }
+    }
+    if (!unit) return;
+    *scale = Tensor::empty({B, 1, 1});
+    *inv_scale = Tensor::empty({B, 1, 1});
+    for (int64_t b = 0; b < B; ++b) {
+        scale->data<float>()[b] = sc[size_t(b)];
+        inv_scale->data<float>()[b] = 1.f / sc[size_t(b)];
+    }
+}
+
+// The mean distance (mm) between predicted and target keypoints, [B, K, 3] each.
+double mean_keypoint_error(const Tensor& pred, const Tensor& target) {
+    const int64_t n = pred.numel() / 3;
+    const float* a = pred.data<float>();
+    const float* g = target.data<float>();
+    double e = 0;
+    for (int64_t i = 0; i < n; ++i) {
+        double d2 = 0;
+        for (int c = 0; c < 3; ++c) d2 += double(a[i * 3 + c] - g[i * 3 + c]) * (a[i * 3 + c] - g[i * 3 + c]);
+        e += std::sqrt(d2);
+    }
+    return e / double(n);
+}
+
+}  // namespace
+
 Tensor rotation_losses(nn::G2LNet& net, const std::vector<PoseSample>& samples, const Tensor& xr,
                        const std::vector<uint8_t>& object,
                        const std::vector<Eigen::Vector3f>& centres, const Tensor& onehot,
@@ -210,30 +295,7 @@ Tensor rotation_losses(nn::G2LNet& net, const std::vector<PoseSample>& samples, 
     // The rotation unit of each sample (mm per unit) and its inverse, [B, 1, 1].
     const bool unit = net.config().rot_unit != "mm";
     Tensor scale, inv_scale;
-    std::vector<float> sc(static_cast<size_t>(B), 1.f);
-    for (int64_t b = 0; b < B; ++b) {
-        const int cls = samples[size_t(b)].class_index;
-        G2L_CHECK(cls >= 0 && cls < int(keypoints.size()) &&
-                      int(keypoints[size_t(cls)].size()) == K,
-                  "g2l_step: no ", K, " keypoints for class index ", cls);
-        if (symmetric)
-            G2L_CHECK(cls < int(symmetric->size()) && !(*symmetric)[size_t(cls)].empty(),
-                      "g2l_step: no symmetric keypoint sets for class index ", cls);
-        if (unit) {
-            G2L_CHECK(cls < int(opt.rot_scale.size()) && opt.rot_scale[size_t(cls)] > 0,
-                      "g2l_step: rot_unit '", net.config().rot_unit,
-                      "' needs a rotation scale for class index ", cls);
-            sc[size_t(b)] = opt.rot_scale[size_t(cls)];
-        }
-    }
-    if (unit) {
-        scale = Tensor::empty({B, 1, 1});
-        inv_scale = Tensor::empty({B, 1, 1});
-        for (int64_t b = 0; b < B; ++b) {
-            scale.data<float>()[b] = sc[size_t(b)];
-            inv_scale.data<float>()[b] = 1.f / sc[size_t(b)];
-        }
-    }
+    rotation_scales(net, samples, keypoints, symmetric, opt, &scale, &inv_scale);
     // In the rotation unit (identity for mm).
     auto in_unit = [&](const Tensor& t) { return unit ? nn::mul(t, inv_scale) : t; };
 
@@ -300,50 +362,13 @@ Tensor rotation_losses(nn::G2LNet& net, const std::vector<PoseSample>& samples, 
     add(nn::mul_scalar(l_kp, w.kp));
     Tensor final_kp = rot.keypoints;
     if (rot.residual.defined()) {
-        // Block C's target online: R_hat = Kabsch(model keypoints -> predicted keypoints,
-        // detached), corrected keypoints = R_hat * model keypoints + residual -> GT keypoints.
-        Tensor model_kp = Tensor::empty({B, K, 3});
-        for (int64_t b = 0; b < B; ++b)
-            for (int k = 0; k < K; ++k)
-                for (int c = 0; c < 3; ++c)
-                    model_kp.data<float>()[(b * K + k) * 3 + c] =
-                        keypoints[size_t(samples[size_t(b)].class_index)][size_t(k)][c];
-        Tensor Rhat = Tensor::empty({B, 3, 3});
-        geom::kabsch_batched(model_kp.data<float>(), rot.keypoints.data<float>(), int(B), K,
-                             Rhat.data<float>());
-        // base = R_hat * model keypoints + t_hat, t_hat aligning the centroids (the inputs
-        // may be centred off the object's origin: centre noise / predicted T).
-        Tensor base = Tensor::empty({B, K, 3});
-        for (int64_t b = 0; b < B; ++b) {
-            const Eigen::Map<const Eigen::Matrix<float, 3, 3, Eigen::RowMajor>> R(
-                Rhat.data<float>() + b * 9);
-            Eigen::Vector3f cm = Eigen::Vector3f::Zero(), cp = Eigen::Vector3f::Zero();
-            for (int k = 0; k < K; ++k) {
-                cm += Eigen::Map<const Eigen::Vector3f>(model_kp.data<float>() + (b * K + k) * 3);
-                cp += Eigen::Map<const Eigen::Vector3f>(rot.keypoints.data<float>() + (b * K + k) * 3);
-            }
-            const Eigen::Vector3f th = (cp - R * cm) / float(K);
-            for (int k = 0; k < K; ++k) {
-                const Eigen::Map<const Eigen::Vector3f> p(model_kp.data<float>() + (b * K + k) * 3);
-                Eigen::Map<Eigen::Vector3f>(base.data<float>() + (b * K + k) * 3) = R * p + th;
-            }
-        }
+        const Tensor base = residual_base(rot.keypoints, samples, keypoints, K);
         final_kp = base + rot.residual;
         const Tensor l_res = nn::mse_loss(in_unit(final_kp), kp_target_u);
         out->res = l_res.item<double>();
         add(nn::mul_scalar(l_res, w.res));
     }
-    {
-        double e = 0;
-        const float* a = final_kp.data<float>();
-        const float* g = kp_target.data<float>();
-        for (int64_t i = 0; i < B * K; ++i) {
-            double d2 = 0;
-            for (int c = 0; c < 3; ++c) d2 += double(a[i * 3 + c] - g[i * 3 + c]) * (a[i * 3 + c] - g[i * 3 + c]);
-            e += std::sqrt(d2);
-        }
-        out->kp_error_mm = e / double(B * K);
-    }
+    out->kp_error_mm = mean_keypoint_error(final_kp, kp_target);
     return total;
 }
 

@@ -233,12 +233,7 @@ const SceneGenerator::ModelGeom& SceneGenerator::model(int obj_id) const {
     return models_.front();
 }
 
-void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads) {
-    G2L_CHECK(index >= 0, "SceneGenerator::render_frame: frame index must be >= 0, got ", index);
-    Rng rng(mix64(cfg_.seed ^ mix64(uint64_t(index) + 0x51ED270B7A3Cull)));
-    const geom::Intrinsics& K = cfg_.camera;
-    const int W = K.width, H = K.height;
-
+std::vector<int> SceneGenerator::choose_objects(Rng& rng, int* n_targets_out) const {
     // Which objects: targets (annotated, instance ids 1..n) then distractors (id -1).
     std::vector<int> pool = targets_;
     if (cfg_.kinds_max > 0) {  // a bin: a few kinds, the targets copies of them
@@ -273,14 +268,18 @@ void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads
     for (int k = 0; k < n_distract; ++k) {
         chosen.push_back(dpool[size_t(rng.below(dpool.size()))]);
     }
+    *n_targets_out = n_targets;
+    return chosen;
+}
 
+std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_random(
+    const std::vector<int>& chosen, int n_targets, Rng& rng) {
     // Poses: centre projects into the central xy_frac of the image at a random depth, and
     // bounding spheres keep apart by `separation`.
-    objects_.clear();
+    const geom::Intrinsics& K = cfg_.camera;
+    const int W = K.width, H = K.height;
     std::vector<std::pair<Eigen::Vector3d, double>> placed;
-    const bool resting = cfg_.pose_mode == "resting";
-    if (resting) placed = place_resting(chosen, n_targets, rng);
-    for (size_t k = 0; k < chosen.size() && !resting; ++k) {
+    for (size_t k = 0; k < chosen.size(); ++k) {
         const ModelGeom& m = model(chosen[k]);
         Eigen::Vector3d p;
         for (int attempt = 0; attempt < 100; ++attempt) {
@@ -304,90 +303,72 @@ void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads
         obj.default_color = cfg_.object_color;
         objects_.push_back(obj);
     }
+    return placed;
+}
 
-    // Support plane: normal tilted from -z, placed behind every bounding sphere.
-    const bool plane = !resting && rng.uniform() < cfg_.support_plane_prob && !placed.empty();
-    if (plane) {
-        const double tilt = rng.uniform(0, cfg_.plane_tilt_max) * kDeg;
-        const double az = rng.uniform(0, 360) * kDeg;
-        const Eigen::Vector3d n(std::sin(tilt) * std::cos(az), std::sin(tilt) * std::sin(az),
-                                -std::cos(tilt));  // points towards the camera
-        double d = -1e30;  // plane n.x + d = 0 with n.p + d >= r for all spheres
-        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-        for (const auto& [q, r] : placed) {
-            d = std::max(d, r - n.dot(q));
-            mean += q;
-        }
-        d += rng.uniform(0, 100);
-        mean /= double(placed.size());
-        RenderObject obj;
-        obj.pose.R = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), n)
-                         .toRotationMatrix();
-        obj.pose.t = mean - (n.dot(mean) + d) * n;
-        const double size = 4.0 * (obj.pose.t.norm() + 500.0) * std::max(W / K.fx, H / K.fy);
-        plane_.vertices = plane_unit_ * float(size);
-        obj.mesh = &plane_;
-        for (int c = 0; c < 3; ++c) {
-            obj.default_color[size_t(c)] =
-                cfg_.random_background ? uint8_t(rng.randint(40, 230)) : uint8_t(128);
-        }
-        objects_.push_back(obj);
+void SceneGenerator::add_support_plane(const std::vector<std::pair<Eigen::Vector3d, double>>& placed,
+                                       Rng& rng) {
+    // Normal tilted from -z, placed behind every bounding sphere.
+    const geom::Intrinsics& K = cfg_.camera;
+    const int W = K.width, H = K.height;
+    const double tilt = rng.uniform(0, cfg_.plane_tilt_max) * kDeg;
+    const double az = rng.uniform(0, 360) * kDeg;
+    const Eigen::Vector3d n(std::sin(tilt) * std::cos(az), std::sin(tilt) * std::sin(az),
+                            -std::cos(tilt));  // points towards the camera
+    double d = -1e30;  // plane n.x + d = 0 with n.p + d >= r for all spheres
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const auto& [q, r] : placed) {
+        d = std::max(d, r - n.dot(q));
+        mean += q;
     }
-
-    RenderOptions opt;
-    opt.threads = threads;
-    if (cfg_.random_light) {
-        const double el = rng.uniform(0, 60) * kDeg, az = rng.uniform(0, 360) * kDeg;
-        opt.light.direction = Eigen::Vector3f(float(std::sin(el) * std::cos(az)),
-                                              float(std::sin(el) * std::sin(az)),
-                                              float(-std::cos(el)));
-        opt.light.ambient = float(rng.uniform(0.15, 0.5));
-        opt.light.diffuse = float(rng.uniform(0.4, 0.9));
+    d += rng.uniform(0, 100);
+    mean /= double(placed.size());
+    RenderObject obj;
+    obj.pose.R = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), n)
+                     .toRotationMatrix();
+    obj.pose.t = mean - (n.dot(mean) + d) * n;
+    const double size = 4.0 * (obj.pose.t.norm() + 500.0) * std::max(W / K.fx, H / K.fy);
+    plane_.vertices = plane_unit_ * float(size);
+    obj.mesh = &plane_;
+    for (int c = 0; c < 3; ++c) {
+        obj.default_color[size_t(c)] =
+            cfg_.random_background ? uint8_t(rng.randint(40, 230)) : uint8_t(128);
     }
-    renderer_.render(objects_, opt, full_);
+    objects_.push_back(obj);
+}
 
-    // Background: a linear gradient between two random colours plus per-pixel noise.
-    out.K = K;
-    out.depth_scale = cfg_.depth_scale;
-    out.rgb = full_.rgb;
-    if (cfg_.random_background) {
-        float c0[3], c1[3];
-        for (int c = 0; c < 3; ++c) {
-            c0[c] = float(rng.uniform(0, 255));
-            c1[c] = float(rng.uniform(0, 255));
-        }
-        const double ang = rng.uniform(0, 360) * kDeg;
-        const float gx = float(std::cos(ang)), gy = float(std::sin(ang));
-        const float amp = float(rng.uniform(0, 40));
-        const float span = std::fabs(gx) * W + std::fabs(gy) * H;
-        const float off = std::min(0.0f, gx * W) + std::min(0.0f, gy * H);
-        for (int v = 0; v < H; ++v) {
-            for (int u = 0; u < W; ++u) {
-                const size_t i = size_t(v) * W + u;
-                if (full_.depth[i] > 0) continue;
-                const float s = (gx * u + gy * v - off) / span;
-                const float nz = amp * float(rng.uniform() - 0.5);
-                for (int c = 0; c < 3; ++c) {
-                    const float val = c0[c] + s * (c1[c] - c0[c]) + nz;
-                    out.rgb[3 * i + c] = uint8_t(std::clamp(val + 0.5f, 0.0f, 255.0f));
-                }
+void SceneGenerator::paint_background(RenderedFrame& out, Rng& rng) const {
+    // A linear gradient between two random colours plus per-pixel noise.
+    const int W = cfg_.camera.width, H = cfg_.camera.height;
+    float c0[3], c1[3];
+    for (int c = 0; c < 3; ++c) {
+        c0[c] = float(rng.uniform(0, 255));
+        c1[c] = float(rng.uniform(0, 255));
+    }
+    const double ang = rng.uniform(0, 360) * kDeg;
+    const float gx = float(std::cos(ang)), gy = float(std::sin(ang));
+    const float amp = float(rng.uniform(0, 40));
+    const float span = std::fabs(gx) * W + std::fabs(gy) * H;
+    const float off = std::min(0.0f, gx * W) + std::min(0.0f, gy * H);
+    for (int v = 0; v < H; ++v) {
+        for (int u = 0; u < W; ++u) {
+            const size_t i = size_t(v) * W + u;
+            if (full_.depth[i] > 0) continue;
+            const float s = (gx * u + gy * v - off) / span;
+            const float nz = amp * float(rng.uniform() - 0.5);
+            for (int c = 0; c < 3; ++c) {
+                const float val = c0[c] + s * (c1[c] - c0[c]) + nz;
+                out.rgb[3 * i + c] = uint8_t(std::clamp(val + 0.5f, 0.0f, 255.0f));
             }
         }
     }
+}
 
-    out.depth = full_.depth;
-    apply_sensor_noise(cfg_.noise, rng.next_u64(), W, H, full_.cos_view.data(), out.depth.data(),
-                       noise_scratch_, threads);
-    out.mask.resize(size_t(W) * H);
-    out.distractor_mask.resize(size_t(W) * H);
-    for (size_t i = 0; i < out.mask.size(); ++i) {
-        const int32_t id = full_.instance[i];
-        out.mask[i] = uint16_t(std::max(id, 0));
-        out.distractor_mask[i] = id < 0 ? 255 : 0;
-    }
-
-    // Per-instance ground truth: full silhouette from a solo render, visible part from the
-    // scene's instance image (BOP scene_gt_info semantics).
+void SceneGenerator::instance_truth(RenderedFrame& out, const std::vector<int>& chosen,
+                                    int n_targets, const RenderOptions& opt) {
+    // Full silhouette from a solo render, visible part from the scene's instance image (BOP
+    // scene_gt_info semantics).
+    const int W = cfg_.camera.width, H = cfg_.camera.height;
     out.instances.resize(size_t(n_targets));
     out.full_masks.resize(size_t(n_targets));
     std::vector<RenderObject> solo(1);
@@ -411,6 +392,48 @@ void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads
         gt.visib_fract =
             gt.px_count_all > 0 ? double(gt.px_count_visib) / double(gt.px_count_all) : 0.0;
     }
+}
+
+void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads) {
+    G2L_CHECK(index >= 0, "SceneGenerator::render_frame: frame index must be >= 0, got ", index);
+    Rng rng(mix64(cfg_.seed ^ mix64(uint64_t(index) + 0x51ED270B7A3Cull)));
+    const geom::Intrinsics& K = cfg_.camera;
+    const int W = K.width, H = K.height;
+    int n_targets = 0;
+    const std::vector<int> chosen = choose_objects(rng, &n_targets);
+    objects_.clear();
+    const bool resting = cfg_.pose_mode == "resting";
+    const std::vector<std::pair<Eigen::Vector3d, double>> placed =
+        resting ? place_resting(chosen, n_targets, rng) : place_random(chosen, n_targets, rng);
+    if (!resting && rng.uniform() < cfg_.support_plane_prob && !placed.empty())
+        add_support_plane(placed, rng);
+
+    RenderOptions opt;
+    opt.threads = threads;
+    if (cfg_.random_light) {
+        const double el = rng.uniform(0, 60) * kDeg, az = rng.uniform(0, 360) * kDeg;
+        opt.light.direction = Eigen::Vector3f(float(std::sin(el) * std::cos(az)),
+                                              float(std::sin(el) * std::sin(az)),
+                                              float(-std::cos(el)));
+        opt.light.ambient = float(rng.uniform(0.15, 0.5));
+        opt.light.diffuse = float(rng.uniform(0.4, 0.9));
+    }
+    renderer_.render(objects_, opt, full_);
+    out.K = K;
+    out.depth_scale = cfg_.depth_scale;
+    out.rgb = full_.rgb;
+    if (cfg_.random_background) paint_background(out, rng);
+    out.depth = full_.depth;
+    apply_sensor_noise(cfg_.noise, rng.next_u64(), W, H, full_.cos_view.data(), out.depth.data(),
+                       noise_scratch_, threads);
+    out.mask.resize(size_t(W) * H);
+    out.distractor_mask.resize(size_t(W) * H);
+    for (size_t i = 0; i < out.mask.size(); ++i) {
+        const int32_t id = full_.instance[i];
+        out.mask[i] = uint16_t(std::max(id, 0));
+        out.distractor_mask[i] = id < 0 ? 255 : 0;
+    }
+    instance_truth(out, chosen, n_targets, opt);
 }
 
 std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_resting(

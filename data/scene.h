@@ -184,6 +184,16 @@ private:
     /// and radius in camera coordinates.
     std::vector<std::pair<Eigen::Vector3d, double>> place_resting(
         const std::vector<int>& chosen, int n_targets, Rng& rng);
+    // The stages of render_frame, in its order of random draws (a frame depends only on the
+    // seed and its index): the objects (targets first), their random poses, the support plane,
+    // the background, each target's ground truth.
+    std::vector<int> choose_objects(Rng& rng, int* n_targets) const;
+    std::vector<std::pair<Eigen::Vector3d, double>> place_random(const std::vector<int>& chosen,
+                                                                 int n_targets, Rng& rng);
+    void add_support_plane(const std::vector<std::pair<Eigen::Vector3d, double>>& placed, Rng& rng);
+    void paint_background(RenderedFrame& out, Rng& rng) const;
+    void instance_truth(RenderedFrame& out, const std::vector<int>& chosen, int n_targets,
+                        const RenderOptions& opt);
     const ModelGeom& model(int obj_id) const;
 
     SceneConfig cfg_;

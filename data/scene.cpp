@@ -94,6 +94,90 @@ geom::StablePose tallest_stable_pose(const geom::Mesh& mesh, const Eigen::Vector
     return best;
 }
 
+// A box on the table of a "resting" frame: footprint centre, yaw and edge lengths.
+struct Block {
+    Eigen::Vector2d xy;
+    double yaw;
+    Eigen::Vector3d size;
+};
+
+// The frame's blocks. They keep apart from each other by their inscribed footprint radius.
+std::vector<Block> draw_blocks(const SceneConfig& cfg, Rng& rng) {
+    std::vector<Block> blocks;
+    if (cfg.blocks_max <= 0) return blocks;
+    const int nb = int(rng.randint(cfg.blocks_min, cfg.blocks_max + 1));
+    for (int b = 0; b < nb; ++b) {
+        Block blk;
+        for (int a = 0; a < 3; ++a) blk.size[a] = rng.uniform(cfg.block_size_mm[0], cfg.block_size_mm[1]);
+        blk.yaw = rng.uniform(0, 360) * kDeg;
+        const double r = 0.5 * std::min(blk.size.x(), blk.size.y());
+        for (int attempt = 0; attempt < 100; ++attempt) {
+            const double rad = cfg.table_spread_mm * std::sqrt(rng.uniform());
+            const double ang = rng.uniform(0, 360) * kDeg;
+            blk.xy = Eigen::Vector2d(rad * std::cos(ang), rad * std::sin(ang));
+            bool ok = true;
+            for (const Block& o : blocks)
+                ok = ok && (blk.xy - o.xy).norm() >=
+                               cfg.separation * (r + 0.5 * std::min(o.size.x(), o.size.y()));
+            if (ok) break;
+        }
+        blocks.push_back(blk);
+    }
+    return blocks;
+}
+
+// Where an object resting on another (posed pu, world frame) stands: the highest vertex of
+// the one beneath within `foot` of xy; a coarse mesh (a box of 8 corners) may have no vertex
+// under the footprint: then its top.
+double support_height(const geom::Mesh& beneath, const geom::Pose& pu, const Eigen::Vector2d& xy,
+                      double foot) {
+    const geom::Points& V = beneath.vertices;
+    const Eigen::Index step = std::max<Eigen::Index>(1, V.rows() / 20000);
+    double top = 0, under_foot = -1;  // highest vertex overall / within the footprint
+    for (Eigen::Index i = 0; i < V.rows(); i += step) {
+        const Eigen::Vector3d q = pu.R * V.row(i).cast<double>().transpose() + pu.t;
+        top = std::max(top, q.z());
+        if ((q.head<2>() - xy).norm() <= foot) under_foot = std::max(under_foot, q.z());
+    }
+    return under_foot >= 0 ? under_foot : top;
+}
+
+// The lowest world z of the mesh's vertices rotated by R (a leaning object touches its
+// support there).
+double lowest_vertex(const geom::Mesh& mesh, const Eigen::Matrix3d& R) {
+    const geom::Points& V = mesh.vertices;
+    const Eigen::Vector3f r2 = R.row(2).cast<float>().transpose();
+    const Eigen::Index step = std::max<Eigen::Index>(1, V.rows() / 20000);
+    double lo = 1e30;
+    for (Eigen::Index i = 0; i < V.rows(); i += step) lo = std::min(lo, double(V.row(i).dot(r2.transpose())));
+    return lo;
+}
+
+// The camera on the upper hemisphere around `look` (jittered in place), with a small roll:
+// its centre C and the world -> camera rotation.
+void draw_camera(const SceneConfig& cfg, Rng& rng, Eigen::Vector3d& look, Eigen::Vector3d* C,
+                 Eigen::Matrix3d* Rcw) {
+    for (int a = 0; a < 3; ++a) look[a] += rng.normal() * cfg.look_at_jitter_mm;
+    look.z() = std::max(0.0, look.z());
+    const double dist = rng.uniform(cfg.camera_distance[0], cfg.camera_distance[1]);
+    const double el = rng.uniform(cfg.camera_elevation[0], cfg.camera_elevation[1]) * kDeg;
+    const double az = rng.uniform(0, 360) * kDeg;
+    const double roll = rng.uniform(-cfg.camera_roll_max, cfg.camera_roll_max) * kDeg;
+    *C = look + dist * Eigen::Vector3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+    const Eigen::Vector3d zc = (look - *C).normalized();
+    const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+    Eigen::Vector3d yc = -(up - up.dot(zc) * zc);
+    yc = yc.norm() > 1e-9 ? yc.normalized() : Eigen::Vector3d::UnitY();
+    Eigen::Vector3d xc = yc.cross(zc);
+    const Eigen::Vector3d xr = std::cos(roll) * xc + std::sin(roll) * yc;
+    const Eigen::Vector3d yr = -std::sin(roll) * xc + std::cos(roll) * yc;
+    Eigen::Matrix3d Rwc;
+    Rwc.col(0) = xr;
+    Rwc.col(1) = yr;
+    Rwc.col(2) = zc;
+    *Rcw = Rwc.transpose();
+}
+
 }  // namespace
 
 void validate(const SceneConfig& c, const std::string& where) {
@@ -441,36 +525,9 @@ std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_resting(
     // World frame: the table is z = 0, z points up.
     std::vector<std::pair<Eigen::Vector3d, double>> world;  // centre (world) and radius
     std::vector<geom::Pose> pose_w;
-    // Blocks first: footprint centre, yaw and edge lengths. They keep apart from each other by
-    // their inscribed footprint radius, and objects keep that distance from them too, so an
-    // object may touch a block (or lean on it) but not sink into its middle.
-    struct Block {
-        Eigen::Vector2d xy;
-        double yaw;
-        Eigen::Vector3d size;
-    };
-    std::vector<Block> blocks;
-    if (cfg_.blocks_max > 0) {
-        const int nb = int(rng.randint(cfg_.blocks_min, cfg_.blocks_max + 1));
-        for (int b = 0; b < nb; ++b) {
-            Block blk;
-            for (int a = 0; a < 3; ++a)
-                blk.size[a] = rng.uniform(cfg_.block_size_mm[0], cfg_.block_size_mm[1]);
-            blk.yaw = rng.uniform(0, 360) * kDeg;
-            const double r = 0.5 * std::min(blk.size.x(), blk.size.y());
-            for (int attempt = 0; attempt < 100; ++attempt) {
-                const double rad = cfg_.table_spread_mm * std::sqrt(rng.uniform());
-                const double ang = rng.uniform(0, 360) * kDeg;
-                blk.xy = Eigen::Vector2d(rad * std::cos(ang), rad * std::sin(ang));
-                bool ok = true;
-                for (const Block& o : blocks)
-                    ok = ok && (blk.xy - o.xy).norm() >=
-                                   cfg_.separation * (r + 0.5 * std::min(o.size.x(), o.size.y()));
-                if (ok) break;
-            }
-            blocks.push_back(blk);
-        }
-    }
+    // Blocks first; objects keep their inscribed footprint radius from them, so an object may
+    // touch a block (or lean on it) but not sink into its middle.
+    const std::vector<Block> blocks = draw_blocks(cfg_, rng);
     for (size_t k = 0; k < chosen.size(); ++k) {
         const ModelGeom& m = model(chosen[k]);
         // A stable pose drawn with its probability, then a random yaw.
@@ -535,28 +592,12 @@ std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_resting(
             const ModelGeom& mu = model(chosen[size_t(under)]);
             const double ang = rng.uniform(0, 360) * kDeg, off = 0.25 * mu.radius * rng.uniform();
             xy = world[size_t(under)].first.head<2>() + off * Eigen::Vector2d(std::cos(ang), std::sin(ang));
-            const double foot = 0.5 * m.radius;
-            const geom::Points& V = mu.mesh->vertices;
-            const Eigen::Index step = std::max<Eigen::Index>(1, V.rows() / 20000);
-            double top = 0, under_foot = -1;  // highest vertex overall / within the footprint
-            for (Eigen::Index i = 0; i < V.rows(); i += step) {
-                const Eigen::Vector3d q = pu.R * V.row(i).cast<double>().transpose() + pu.t;
-                top = std::max(top, q.z());
-                if ((q.head<2>() - xy).norm() <= foot) under_foot = std::max(under_foot, q.z());
-            }
-            // A coarse mesh (a box of 8 corners) may have no vertex under the footprint: its top.
-            base = under_foot >= 0 ? under_foot : top;
+            base = support_height(*mu.mesh, pu, xy, 0.5 * m.radius);
         }
         geom::Pose pw;
         pw.R = R;
         if (lean) {  // lowest vertex on the support
-            const geom::Points& V = m.mesh->vertices;
-            const Eigen::Vector3f r2 = R.row(2).cast<float>().transpose();
-            const Eigen::Index step = std::max<Eigen::Index>(1, V.rows() / 20000);
-            double lo = 1e30;
-            for (Eigen::Index i = 0; i < V.rows(); i += step)
-                lo = std::min(lo, double(V.row(i).dot(r2.transpose())));
-            pw.t = Eigen::Vector3d(xy.x(), xy.y(), base - lo);
+            pw.t = Eigen::Vector3d(xy.x(), xy.y(), base - lowest_vertex(*m.mesh, R));
         } else {
             pw.t = Eigen::Vector3d(xy.x(), xy.y(), base + rest->height) - R * m.com;
         }
@@ -567,26 +608,9 @@ std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_resting(
     Eigen::Vector3d look = Eigen::Vector3d::Zero();
     for (int k = 0; k < n_targets; ++k) look += world[size_t(k)].first;
     look /= double(std::max(1, n_targets));
-    for (int a = 0; a < 3; ++a) look[a] += rng.normal() * cfg_.look_at_jitter_mm;
-    look.z() = std::max(0.0, look.z());
-    const double dist = rng.uniform(cfg_.camera_distance[0], cfg_.camera_distance[1]);
-    const double el = rng.uniform(cfg_.camera_elevation[0], cfg_.camera_elevation[1]) * kDeg;
-    const double az = rng.uniform(0, 360) * kDeg;
-    const double roll = rng.uniform(-cfg_.camera_roll_max, cfg_.camera_roll_max) * kDeg;
-    const Eigen::Vector3d C =
-        look + dist * Eigen::Vector3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
-    const Eigen::Vector3d zc = (look - C).normalized();
-    const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
-    Eigen::Vector3d yc = -(up - up.dot(zc) * zc);
-    yc = yc.norm() > 1e-9 ? yc.normalized() : Eigen::Vector3d::UnitY();
-    Eigen::Vector3d xc = yc.cross(zc);
-    const Eigen::Vector3d xr = std::cos(roll) * xc + std::sin(roll) * yc;
-    const Eigen::Vector3d yr = -std::sin(roll) * xc + std::cos(roll) * yc;
-    Eigen::Matrix3d Rwc;
-    Rwc.col(0) = xr;
-    Rwc.col(1) = yr;
-    Rwc.col(2) = zc;
-    const Eigen::Matrix3d Rcw = Rwc.transpose();
+    Eigen::Vector3d C;
+    Eigen::Matrix3d Rcw;
+    draw_camera(cfg_, rng, look, &C, &Rcw);
     std::vector<std::pair<Eigen::Vector3d, double>> placed;
     for (size_t k = 0; k < chosen.size(); ++k) {
         const ModelGeom& m = model(chosen[k]);

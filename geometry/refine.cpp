@@ -306,9 +306,12 @@ double free_space_violation(const Points& model_pts, const Pose& pose, const Dep
     return seen ? double(viol) / double(seen) : 0.0;
 }
 
-RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const Points& obs_all,
+namespace {
+
+// The inputs refine_pose refuses, named (a grid that is empty counts as none).
+void check_refine_inputs(const ModelKdTree& tree, const ModelInfo& info, const Points& obs_all,
                          const Pose& init, const RefineOptions& opt, const DepthImage* depth,
-                         const Points* normals, const ClosestPointGrid* grid) {
+                         const ClosestPointGrid* grid) {
     G2L_CHECK(std::isfinite(info.diameter) && info.diameter > 0,
               "refine_pose: model diameter must be > 0, got ", info.diameter);
     G2L_CHECK(obs_all.rows() >= 3, "refine_pose: need at least 3 observed points, got ",
@@ -343,7 +346,6 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
               ", plane_min_inliers ", opt.plane_min_inliers, ")");
     G2L_CHECK(opt.polish_iterations >= 0, "refine_pose: polish_iterations must be >= 0, got ",
               opt.polish_iterations);
-    if (grid && grid->empty()) grid = nullptr;  // an empty grid is no grid
     G2L_CHECK(!grid || grid->margin_mm() >= opt.inlier_frac * info.diameter * (1 - 1e-9),
               "refine_pose: the grid's margin (", grid ? grid->margin_mm() : 0.0,
               " mm) is below the inlier cap (", opt.inlier_frac * info.diameter,
@@ -351,29 +353,41 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
     G2L_CHECK(!grid || grid->tree_points() == tree.size(),
               "refine_pose: the grid was built over a tree of ", grid ? grid->tree_points() : 0,
               " points, this tree has ", tree.size());
+}
+
+// The support plane around the observed points' image box (grown by plane_region), when the
+// depth shows one with enough inliers.
+bool find_support_plane(const Points& obs_all, const DepthImage& depth, const RefineOptions& opt,
+                        Plane* plane) {
+    const Intrinsics& K = depth.K;
+    double u0 = 1e300, v0 = 1e300, u1 = -1e300, v1 = -1e300;
+    for (int64_t i = 0; i < obs_all.rows(); ++i) {
+        const double z = obs_all(i, 2);
+        if (!(z > 1.0)) continue;
+        const double u = K.fx * obs_all(i, 0) / z + K.cx, v = K.fy * obs_all(i, 1) / z + K.cy;
+        u0 = std::min(u0, u); u1 = std::max(u1, u);
+        v0 = std::min(v0, v); v1 = std::max(v1, v);
+    }
+    const double gu = opt.plane_region * (u1 - u0), gv = opt.plane_region * (v1 - v0);
+    return u1 >= u0 &&
+           fit_plane(depth, int(std::floor(u0 - gu)), int(std::floor(v0 - gv)),
+                     int(std::ceil(u1 + gu)) + 1, int(std::ceil(v1 + gv)) + 1, opt.plane_tol_mm,
+                     plane) &&
+           plane->inlier_frac >= opt.plane_min_inliers;
+}
+
+}  // namespace
+
+RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const Points& obs_all,
+                         const Pose& init, const RefineOptions& opt, const DepthImage* depth,
+                         const Points* normals, const ClosestPointGrid* grid) {
+    if (grid && grid->empty()) grid = nullptr;  // an empty grid is no grid
+    check_refine_inputs(tree, info, obs_all, init, opt, depth, grid);
+    const int64_t n_all = obs_all.rows();
     RefineResult base;
     base.observed = int(n_all);
-    // The support plane, found around the observed points' image box.
     Plane plane;
-    if (depth && opt.support_plane) {
-        const Intrinsics& K = depth->K;
-        double u0 = 1e300, v0 = 1e300, u1 = -1e300, v1 = -1e300;
-        for (int64_t i = 0; i < n_all; ++i) {
-            const double z = obs_all(i, 2);
-            if (!(z > 1.0)) continue;
-            const double u = K.fx * obs_all(i, 0) / z + K.cx, v = K.fy * obs_all(i, 1) / z + K.cy;
-            u0 = std::min(u0, u); u1 = std::max(u1, u);
-            v0 = std::min(v0, v); v1 = std::max(v1, v);
-        }
-        const double gu = opt.plane_region * (u1 - u0), gv = opt.plane_region * (v1 - v0);
-        if (u1 >= u0 &&
-            fit_plane(*depth, int(std::floor(u0 - gu)), int(std::floor(v0 - gv)),
-                      int(std::ceil(u1 + gu)) + 1, int(std::ceil(v1 + gv)) + 1, opt.plane_tol_mm,
-                      &plane) &&
-            plane.inlier_frac >= opt.plane_min_inliers) {
-            base.plane = true;
-        }
-    }
+    if (depth && opt.support_plane) base.plane = find_support_plane(obs_all, *depth, opt, &plane);
     G2L_CHECK(!normals || normals->rows() == tree.size(), "refine_pose: ", normals ? normals->rows() : 0,
               " normals for ", tree.size(), " model points");
     // What every searched point set shares: the turns, the model points projected for the

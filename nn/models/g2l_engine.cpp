@@ -318,6 +318,15 @@ struct PoseEngine::Impl {
         }
         return cur;
     }
+
+    // The stages of PoseEngine::estimate (below it).
+    template <class SizeOf>
+    int64_t set_segments(const std::vector<PoseQuery>& qs, SizeOf size_of);
+    const std::vector<int>& classes(const std::vector<PoseQuery>& qs);
+    void segment(const std::vector<PoseQuery>& qs, int max_points, int crop_points,
+                 std::vector<PoseEstimate>* out);
+    void translate(const std::vector<PoseQuery>& qs);
+    void rotate(const std::vector<PoseQuery>& qs, std::vector<PoseEstimate>* out);
 };
 
 PoseEngine::PoseEngine(const G2LNet& net) : impl_(std::make_unique<Impl>()) {
@@ -376,6 +385,249 @@ PoseEstimate PoseEngine::estimate(const geom::Points& crop, int class_index,
     return out[0];
 }
 
+// ---- PoseEngine::estimate's stages (G2L-Net §3.2-3.4), over the active queries side by side ----
+
+// Segments of the active queries with sizes n(q); returns the total.
+template <class SizeOf>
+int64_t PoseEngine::Impl::set_segments(const std::vector<PoseQuery>&, SizeOf size_of) {
+    start.assign(1, 0);
+    for (int q : active) start.push_back(start.back() + size_of(q));
+    return start.back();
+}
+
+const std::vector<int>& PoseEngine::Impl::classes(const std::vector<PoseQuery>& qs) {
+    cls_buf.clear();
+    for (int q : active) cls_buf.push_back(qs[size_t(q)].class_index);
+    return cls_buf;
+}
+
+// 1. Segmentation of the crop, centred by the mean of the points it sees; given object
+// points replace the seg net's decision; queries left with < 10 object points drop out.
+void PoseEngine::Impl::segment(const std::vector<PoseQuery>& qs, int max_points, int crop_points,
+                               std::vector<PoseEstimate>* out) {
+    std::vector<int>& act = active;
+    act.clear();
+    for (size_t i = 0; i < qs.size(); ++i) {
+        Work& w = work[i];
+        const geom::Points& pts = *qs[i].crop;
+        w.active = pts.rows() >= 10;
+        if (!w.active) {
+            (*out)[i].status = "too few crop points";
+            continue;
+        }
+        if (crop_points > 0) {
+            even_sample_into(int(pts.rows()), crop_points, &w.all);
+        } else {
+            w.all.resize(size_t(pts.rows()));
+            for (size_t k = 0; k < w.all.size(); ++k) w.all[k] = int(k);
+        }
+        w.mean.setZero();
+        for (int k : w.all) w.mean += pts.row(k).transpose();
+        w.mean /= float(w.all.size());
+        act.push_back(int(i));
+    }
+    if (!act.empty()) {
+        const int64_t N = set_segments(qs, [&](int q) { return int64_t(work[size_t(q)].all.size()); });
+        grow(&xin, size_t(3 * N));
+        for (size_t s = 0; s < act.size(); ++s) {
+            const Work& w = work[size_t(act[s])];
+            const geom::Points& pts = *qs[size_t(act[s])].crop;
+            for (size_t n = 0; n < w.all.size(); ++n)
+                for (int c = 0; c < 3; ++c)
+                    xin[size_t(c * N + start[s] + int64_t(n))] = pts(w.all[n], c) - w.mean[c];
+        }
+        grow(&feat, size_t((K3 + seg_bb.c1 + seg_bb.c2) * N));
+        run_backbone(seg_bb, N, 0);
+        const float* h = run_head(seg_head, N, 0, classes(qs));
+        grow(&small, size_t(2 * N));
+        run_points(seg_out, h, N, small.data(), nullptr);
+        for (size_t s = 0; s < act.size(); ++s) {
+            Work& w = work[size_t(act[s])];
+            w.obj.clear();
+            for (size_t n = 0; n < w.all.size(); ++n) {
+                const int64_t col = start[s] + int64_t(n);
+                if (small[size_t(N + col)] > small[size_t(col)]) w.obj.push_back(w.all[n]);
+            }
+        }
+    }
+    for (int q : act) {  // given object points replace the seg net's decision
+        Work& w = work[size_t(q)];
+        if (const std::vector<uint8_t>* mask = qs[size_t(q)].object_mask) {
+            w.obj.clear();
+            for (int k : w.all)
+                if ((*mask)[size_t(k)]) w.obj.push_back(k);
+        }
+        if (qs[size_t(q)].object_rows) *qs[size_t(q)].object_rows = w.obj;
+    }
+    keep.clear();
+    for (int q : act) {
+        Work& w = work[size_t(q)];
+        (*out)[size_t(q)].num_object_points = int(w.obj.size());
+        if (w.obj.size() < 10) {
+            (*out)[size_t(q)].status = "too few object points";
+            continue;
+        }
+        if (max_points > 0) {
+            even_sample_into(int(w.obj.size()), max_points, &w.sub);
+            for (int& k : w.sub) k = w.obj[size_t(k)];
+            std::swap(w.obj, w.sub);
+        }
+        keep.push_back(q);
+    }
+    act.swap(keep);
+}
+
+// 2. Translation = mean of the object points + the T-net's residual.
+void PoseEngine::Impl::translate(const std::vector<PoseQuery>& qs) {
+    const G2LConfig& cfg = this->cfg;
+    std::vector<int>& act = active;
+    if (!act.empty()) {
+        const int64_t N = set_segments(qs, [&](int q) { return int64_t(work[size_t(q)].obj.size()); });
+        grow(&xin, size_t(3 * N));
+        for (size_t s = 0; s < act.size(); ++s) {
+            Work& w = work[size_t(act[s])];
+            const geom::Points& pts = *qs[size_t(act[s])].crop;
+            w.mean.setZero();
+            for (int k : w.obj) w.mean += pts.row(k).transpose();
+            w.mean /= float(w.obj.size());
+            for (size_t n = 0; n < w.obj.size(); ++n)
+                for (int c = 0; c < 3; ++c)
+                    xin[size_t(c * N + start[s] + int64_t(n))] = pts(w.obj[n], c) - w.mean[c];
+        }
+        grow(&h1, size_t(t_mlp[0].cout * N));
+        grow(&h2, size_t(std::max(t_mlp[1].cout, t_mlp[2].cout) * N));
+        grow(&a, size_t(t_mlp[2].cout * N));
+        run_points(t_mlp[0], xin.data(), N, h1.data(), nullptr);
+        run_points(t_mlp[1], h1.data(), N, h2.data(), nullptr);
+        run_points(t_mlp[2], h2.data(), N, a.data(), nullptr);
+        const int64_t c3 = t_mlp[2].cout;
+        grow(&g, size_t(int64_t(act.size()) * c3));
+        max_points(a.data(), c3, N, g.data());
+        grow(&vec_a, size_t(c3 + cfg.num_classes + 1024));
+        grow(&vec_b, size_t(1024));
+        for (size_t s = 0; s < act.size(); ++s) {
+            Work& w = work[size_t(act[s])];
+            std::copy(g.data() + int64_t(s) * c3, g.data() + int64_t(s + 1) * c3, vec_a.data());
+            std::fill(vec_a.data() + c3, vec_a.data() + c3 + cfg.num_classes, 0.f);
+            vec_a[size_t(c3 + qs[size_t(act[s])].class_index)] = 1.f;
+            run_vec(t_fc[0], vec_a.data(), vec_b.data());
+            run_vec(t_fc[1], vec_b.data(), vec_a.data());
+            float res[3];
+            run_vec(t_out, vec_a.data(), res);
+            const float o = float(cfg.out_scale_mm);
+            w.T = w.mean + (o == 1.f ? Eigen::Vector3f(res[0], res[1], res[2])
+                                     : Eigen::Vector3f(res[0] * o, res[1] * o, res[2] * o));
+            if (const Eigen::Vector3f* given = qs[size_t(act[s])].translation) w.T = *given;
+        }
+    }
+}
+
+// 3. Rotation in the canonical frame (points - T), in units of the object's scale: block A's
+// vectors, block B's keypoints, Kabsch, block C's residual, Kabsch again.
+void PoseEngine::Impl::rotate(const std::vector<PoseQuery>& qs, std::vector<PoseEstimate>* out) {
+    const G2LConfig& cfg = this->cfg;
+    const int K = cfg.num_keypoints;
+    std::vector<int>& act = active;
+    if (!act.empty()) {
+        const int64_t N = set_segments(qs, [&](int q) { return int64_t(work[size_t(q)].obj.size()); });
+        const bool unit = cfg.rot_unit != "mm";
+        grow(&xin, size_t(3 * N));
+        for (size_t s = 0; s < act.size(); ++s) {
+            Work& w = work[size_t(act[s])];
+            const geom::Points& pts = *qs[size_t(act[s])].crop;
+            w.scale = unit ? float(rotation_scale(cfg.rot_unit, *qs[size_t(act[s])].keypoints)) : 1.f;
+            w.out_mul = unit ? w.scale : float(cfg.out_scale_mm);
+            for (size_t n = 0; n < w.obj.size(); ++n)
+                for (int c = 0; c < 3; ++c) {
+                    const float v = pts(w.obj[n], c) - w.T[c];
+                    xin[size_t(c * N + start[s] + int64_t(n))] = unit ? v / w.scale : v;
+                }
+        }
+        const int64_t P = evf ? K3 : 0;
+        grow(&feat, size_t((P + feat_bb.c1 + feat_bb.c2) * N));
+        run_backbone(feat_bb, N, P);
+        const std::vector<int>& cls = classes(qs);
+        if (evf) {
+            // Block A: per-point vectors into feat rows [0, 3K) (each object its class's rows).
+            const float* h = run_head(evf_head, N, P, cls);
+            const bool per_class = evf_out.cout != K3;
+            for (size_t s = 0; s < act.size(); ++s) {
+                const int64_t r0 = per_class ? int64_t(cls[s]) * K3 : 0;
+                const int64_t off = start[s], n = start[s + 1] - off;
+                kernels::GemmEpilogue ep;
+                ep.bias = evf_out.b.data() + r0;
+                kernels::gemm_batched_cpu<float>(false, false, K3, n, evf_out.cin, 1.f,
+                                                 evf_out.w.data() + r0 * evf_out.cin,
+                                                 evf_out.cin, h + off, N, 0, 0.f,
+                                                 feat.data() + off, N, 0, 1, &ep);
+            }
+        }
+        // Block C first (it reads feat rows [P, ...) and this->g, which block B's head keeps).
+        grow(&vec_a, size_t(std::max<int64_t>(1024, rot_head.rest.back().cout)));
+        grow(&vec_b, size_t(1024));
+        std::vector<float>& kp_out = small;  // [S, 3K] keypoints then [S, 3K] residuals
+        grow(&kp_out, size_t(2 * int64_t(act.size()) * K3 + 2 * N));
+        float* kp = kp_out.data();
+        float* resid = kp + int64_t(act.size()) * K3;
+        if (rre) {
+            int64_t c = 0;
+            const float* pooled = pooled_head(rre_head, N, P, cls, &c);
+            for (size_t s = 0; s < act.size(); ++s)
+                class_rows(rre_out, cls[s], pooled + int64_t(s) * c, resid + int64_t(s) * K3);
+        }
+        {
+            int64_t c = 0;
+            const float* pooled = pooled_head(rot_head, N, 0, cls, &c);
+            for (size_t s = 0; s < act.size(); ++s) {
+                run_vec(rot_fc[0], pooled + int64_t(s) * c, vec_a.data());
+                run_vec(rot_fc[1], vec_a.data(), vec_b.data());
+                run_vec(rot_fc[2], vec_b.data(), vec_a.data());
+                class_rows(rot_out, cls[s], vec_a.data(), kp + int64_t(s) * K3);
+            }
+        }
+        // Kabsch on block B's keypoints, corrected by block C's residual and Kabsch again
+        // (as estimate_pose).
+        for (size_t s = 0; s < act.size(); ++s) {
+            const int q = act[s];
+            const Work& w = work[size_t(q)];
+            const auto& mk = *qs[size_t(q)].keypoints;
+            auto kabsch = [&](auto&& q_of) {
+                Eigen::Vector3d pm = Eigen::Vector3d::Zero(), qm = Eigen::Vector3d::Zero();
+                for (int k = 0; k < K; ++k) {
+                    pm += mk[size_t(k)].cast<double>();
+                    qm += q_of(k);
+                }
+                pm /= K;
+                qm /= K;
+                Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+                for (int k = 0; k < K; ++k)
+                    H += (mk[size_t(k)].cast<double>() - pm) * (q_of(k) - qm).transpose();
+                return geom::rotation_from_covariance(H);
+            };
+            const float* kq = kp + int64_t(s) * K3;
+            Eigen::Matrix3d R = kabsch([&](int k) {
+                return Eigen::Vector3d(double(kq[3 * k] * w.out_mul), double(kq[3 * k + 1] * w.out_mul),
+                                       double(kq[3 * k + 2] * w.out_mul));
+            });
+            if (rre) {
+                const float* rq = resid + int64_t(s) * K3;
+                const Eigen::Matrix3d R1 = R;
+                R = kabsch([&](int k) {
+                    const Eigen::Vector3d rp = R1 * mk[size_t(k)].cast<double>();
+                    return Eigen::Vector3d(double(float(rp[0]) + rq[3 * k] * w.out_mul),
+                                           double(float(rp[1]) + rq[3 * k + 1] * w.out_mul),
+                                           double(float(rp[2]) + rq[3 * k + 2] * w.out_mul));
+                });
+            }
+            PoseEstimate& e = (*out)[size_t(q)];
+            e.pose.R = R;
+            e.pose.t = w.T.cast<double>();
+            e.ok = true;
+            e.status = "ok";
+        }
+    }
+}
+
 void PoseEngine::estimate(const std::vector<PoseQuery>& qs, int max_points, int crop_points,
                           std::vector<PoseEstimate>* out) {
     Impl& m = *impl_;
@@ -403,238 +655,14 @@ void PoseEngine::estimate(const std::vector<PoseQuery>& qs, int max_points, int 
         if (q.object_rows) q.object_rows->clear();
     if (m.work.size() < qs.size()) m.work.resize(qs.size());
     const double nq = double(std::max<size_t>(1, qs.size()));
-    std::vector<int>& act = m.active;
-    std::vector<int>& cls_buf = m.cls_buf;
-
-    // Segments of the active queries with sizes n(q).
-    auto set_segments = [&](auto size_of) {
-        m.start.assign(1, 0);
-        for (int q : act) m.start.push_back(m.start.back() + size_of(q));
-        return m.start.back();
-    };
-    auto classes = [&]() -> const std::vector<int>& {
-        cls_buf.clear();
-        for (int q : act) cls_buf.push_back(qs[size_t(q)].class_index);
-        return cls_buf;
-    };
-
-    // ---- 1. segmentation of the crop, centred by the mean of the points it sees ----
     auto t0 = Clock::now();
-    act.clear();
-    for (size_t i = 0; i < qs.size(); ++i) {
-        Impl::Work& w = m.work[i];
-        const geom::Points& pts = *qs[i].crop;
-        w.active = pts.rows() >= 10;
-        if (!w.active) {
-            (*out)[i].status = "too few crop points";
-            continue;
-        }
-        if (crop_points > 0) {
-            even_sample_into(int(pts.rows()), crop_points, &w.all);
-        } else {
-            w.all.resize(size_t(pts.rows()));
-            for (size_t k = 0; k < w.all.size(); ++k) w.all[k] = int(k);
-        }
-        w.mean.setZero();
-        for (int k : w.all) w.mean += pts.row(k).transpose();
-        w.mean /= float(w.all.size());
-        act.push_back(int(i));
-    }
-    if (!act.empty()) {
-        const int64_t N = set_segments([&](int q) { return int64_t(m.work[size_t(q)].all.size()); });
-        grow(&m.xin, size_t(3 * N));
-        for (size_t s = 0; s < act.size(); ++s) {
-            const Impl::Work& w = m.work[size_t(act[s])];
-            const geom::Points& pts = *qs[size_t(act[s])].crop;
-            for (size_t n = 0; n < w.all.size(); ++n)
-                for (int c = 0; c < 3; ++c)
-                    m.xin[size_t(c * N + m.start[s] + int64_t(n))] = pts(w.all[n], c) - w.mean[c];
-        }
-        grow(&m.feat, size_t((m.K3 + m.seg_bb.c1 + m.seg_bb.c2) * N));
-        m.run_backbone(m.seg_bb, N, 0);
-        const float* h = m.run_head(m.seg_head, N, 0, classes());
-        grow(&m.small, size_t(2 * N));
-        m.run_points(m.seg_out, h, N, m.small.data(), nullptr);
-        for (size_t s = 0; s < act.size(); ++s) {
-            Impl::Work& w = m.work[size_t(act[s])];
-            w.obj.clear();
-            for (size_t n = 0; n < w.all.size(); ++n) {
-                const int64_t col = m.start[s] + int64_t(n);
-                if (m.small[size_t(N + col)] > m.small[size_t(col)]) w.obj.push_back(w.all[n]);
-            }
-        }
-    }
-    for (int q : act) {  // given object points replace the seg net's decision
-        Impl::Work& w = m.work[size_t(q)];
-        if (const std::vector<uint8_t>* mask = qs[size_t(q)].object_mask) {
-            w.obj.clear();
-            for (int k : w.all)
-                if ((*mask)[size_t(k)]) w.obj.push_back(k);
-        }
-        if (qs[size_t(q)].object_rows) *qs[size_t(q)].object_rows = w.obj;
-    }
+    m.segment(qs, max_points, crop_points, out);
     const double ms_seg = ms_since(t0) / nq;
-    std::vector<int>& keep = m.keep;
-    keep.clear();
-    for (int q : act) {
-        Impl::Work& w = m.work[size_t(q)];
-        (*out)[size_t(q)].num_object_points = int(w.obj.size());
-        if (w.obj.size() < 10) {
-            (*out)[size_t(q)].status = "too few object points";
-            continue;
-        }
-        if (max_points > 0) {
-            even_sample_into(int(w.obj.size()), max_points, &w.sub);
-            for (int& k : w.sub) k = w.obj[size_t(k)];
-            std::swap(w.obj, w.sub);
-        }
-        keep.push_back(q);
-    }
-    act.swap(keep);
-
-    // ---- 2. translation = mean of the object points + the T-net's residual ----
     t0 = Clock::now();
-    if (!act.empty()) {
-        const int64_t N = set_segments([&](int q) { return int64_t(m.work[size_t(q)].obj.size()); });
-        grow(&m.xin, size_t(3 * N));
-        for (size_t s = 0; s < act.size(); ++s) {
-            Impl::Work& w = m.work[size_t(act[s])];
-            const geom::Points& pts = *qs[size_t(act[s])].crop;
-            w.mean.setZero();
-            for (int k : w.obj) w.mean += pts.row(k).transpose();
-            w.mean /= float(w.obj.size());
-            for (size_t n = 0; n < w.obj.size(); ++n)
-                for (int c = 0; c < 3; ++c)
-                    m.xin[size_t(c * N + m.start[s] + int64_t(n))] = pts(w.obj[n], c) - w.mean[c];
-        }
-        grow(&m.h1, size_t(m.t_mlp[0].cout * N));
-        grow(&m.h2, size_t(std::max(m.t_mlp[1].cout, m.t_mlp[2].cout) * N));
-        grow(&m.a, size_t(m.t_mlp[2].cout * N));
-        m.run_points(m.t_mlp[0], m.xin.data(), N, m.h1.data(), nullptr);
-        m.run_points(m.t_mlp[1], m.h1.data(), N, m.h2.data(), nullptr);
-        m.run_points(m.t_mlp[2], m.h2.data(), N, m.a.data(), nullptr);
-        const int64_t c3 = m.t_mlp[2].cout;
-        grow(&m.g, size_t(int64_t(act.size()) * c3));
-        m.max_points(m.a.data(), c3, N, m.g.data());
-        grow(&m.vec_a, size_t(c3 + cfg.num_classes + 1024));
-        grow(&m.vec_b, size_t(1024));
-        for (size_t s = 0; s < act.size(); ++s) {
-            Impl::Work& w = m.work[size_t(act[s])];
-            std::copy(m.g.data() + int64_t(s) * c3, m.g.data() + int64_t(s + 1) * c3, m.vec_a.data());
-            std::fill(m.vec_a.data() + c3, m.vec_a.data() + c3 + cfg.num_classes, 0.f);
-            m.vec_a[size_t(c3 + qs[size_t(act[s])].class_index)] = 1.f;
-            Impl::run_vec(m.t_fc[0], m.vec_a.data(), m.vec_b.data());
-            Impl::run_vec(m.t_fc[1], m.vec_b.data(), m.vec_a.data());
-            float res[3];
-            Impl::run_vec(m.t_out, m.vec_a.data(), res);
-            const float o = float(cfg.out_scale_mm);
-            w.T = w.mean + (o == 1.f ? Eigen::Vector3f(res[0], res[1], res[2])
-                                     : Eigen::Vector3f(res[0] * o, res[1] * o, res[2] * o));
-            if (const Eigen::Vector3f* given = qs[size_t(act[s])].translation) w.T = *given;
-        }
-    }
+    m.translate(qs);
     const double ms_t = ms_since(t0) / nq;
-
-    // ---- 3. rotation in the canonical frame (points - T), in units of the object's scale ----
     t0 = Clock::now();
-    if (!act.empty()) {
-        const int64_t N = set_segments([&](int q) { return int64_t(m.work[size_t(q)].obj.size()); });
-        const bool unit = cfg.rot_unit != "mm";
-        grow(&m.xin, size_t(3 * N));
-        for (size_t s = 0; s < act.size(); ++s) {
-            Impl::Work& w = m.work[size_t(act[s])];
-            const geom::Points& pts = *qs[size_t(act[s])].crop;
-            w.scale = unit ? float(rotation_scale(cfg.rot_unit, *qs[size_t(act[s])].keypoints)) : 1.f;
-            w.out_mul = unit ? w.scale : float(cfg.out_scale_mm);
-            for (size_t n = 0; n < w.obj.size(); ++n)
-                for (int c = 0; c < 3; ++c) {
-                    const float v = pts(w.obj[n], c) - w.T[c];
-                    m.xin[size_t(c * N + m.start[s] + int64_t(n))] = unit ? v / w.scale : v;
-                }
-        }
-        const int64_t P = m.evf ? m.K3 : 0;
-        grow(&m.feat, size_t((P + m.feat_bb.c1 + m.feat_bb.c2) * N));
-        m.run_backbone(m.feat_bb, N, P);
-        const std::vector<int>& cls = classes();
-        if (m.evf) {
-            // Block A: per-point vectors into feat rows [0, 3K) (each object its class's rows).
-            const float* h = m.run_head(m.evf_head, N, P, cls);
-            const bool per_class = m.evf_out.cout != m.K3;
-            for (size_t s = 0; s < act.size(); ++s) {
-                const int64_t r0 = per_class ? int64_t(cls[s]) * m.K3 : 0;
-                const int64_t off = m.start[s], n = m.start[s + 1] - off;
-                kernels::GemmEpilogue ep;
-                ep.bias = m.evf_out.b.data() + r0;
-                kernels::gemm_batched_cpu<float>(false, false, m.K3, n, m.evf_out.cin, 1.f,
-                                                 m.evf_out.w.data() + r0 * m.evf_out.cin,
-                                                 m.evf_out.cin, h + off, N, 0, 0.f,
-                                                 m.feat.data() + off, N, 0, 1, &ep);
-            }
-        }
-        // Block C first (it reads feat rows [P, ...) and this->g, which block B's head keeps).
-        grow(&m.vec_a, size_t(std::max<int64_t>(1024, m.rot_head.rest.back().cout)));
-        grow(&m.vec_b, size_t(1024));
-        std::vector<float>& kp_out = m.small;  // [S, 3K] keypoints then [S, 3K] residuals
-        grow(&kp_out, size_t(2 * int64_t(act.size()) * m.K3 + 2 * N));
-        float* kp = kp_out.data();
-        float* resid = kp + int64_t(act.size()) * m.K3;
-        if (m.rre) {
-            int64_t c = 0;
-            const float* pooled = m.pooled_head(m.rre_head, N, P, cls, &c);
-            for (size_t s = 0; s < act.size(); ++s)
-                m.class_rows(m.rre_out, cls[s], pooled + int64_t(s) * c, resid + int64_t(s) * m.K3);
-        }
-        {
-            int64_t c = 0;
-            const float* pooled = m.pooled_head(m.rot_head, N, 0, cls, &c);
-            for (size_t s = 0; s < act.size(); ++s) {
-                Impl::run_vec(m.rot_fc[0], pooled + int64_t(s) * c, m.vec_a.data());
-                Impl::run_vec(m.rot_fc[1], m.vec_a.data(), m.vec_b.data());
-                Impl::run_vec(m.rot_fc[2], m.vec_b.data(), m.vec_a.data());
-                m.class_rows(m.rot_out, cls[s], m.vec_a.data(), kp + int64_t(s) * m.K3);
-            }
-        }
-        // Kabsch on block B's keypoints, corrected by block C's residual and Kabsch again
-        // (as estimate_pose).
-        for (size_t s = 0; s < act.size(); ++s) {
-            const int q = act[s];
-            const Impl::Work& w = m.work[size_t(q)];
-            const auto& mk = *qs[size_t(q)].keypoints;
-            auto kabsch = [&](auto&& q_of) {
-                Eigen::Vector3d pm = Eigen::Vector3d::Zero(), qm = Eigen::Vector3d::Zero();
-                for (int k = 0; k < K; ++k) {
-                    pm += mk[size_t(k)].cast<double>();
-                    qm += q_of(k);
-                }
-                pm /= K;
-                qm /= K;
-                Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
-                for (int k = 0; k < K; ++k)
-                    H += (mk[size_t(k)].cast<double>() - pm) * (q_of(k) - qm).transpose();
-                return geom::rotation_from_covariance(H);
-            };
-            const float* kq = kp + int64_t(s) * m.K3;
-            Eigen::Matrix3d R = kabsch([&](int k) {
-                return Eigen::Vector3d(double(kq[3 * k] * w.out_mul), double(kq[3 * k + 1] * w.out_mul),
-                                       double(kq[3 * k + 2] * w.out_mul));
-            });
-            if (m.rre) {
-                const float* rq = resid + int64_t(s) * m.K3;
-                const Eigen::Matrix3d R1 = R;
-                R = kabsch([&](int k) {
-                    const Eigen::Vector3d rp = R1 * mk[size_t(k)].cast<double>();
-                    return Eigen::Vector3d(double(float(rp[0]) + rq[3 * k] * w.out_mul),
-                                           double(float(rp[1]) + rq[3 * k + 1] * w.out_mul),
-                                           double(float(rp[2]) + rq[3 * k + 2] * w.out_mul));
-                });
-            }
-            PoseEstimate& e = (*out)[size_t(q)];
-            e.pose.R = R;
-            e.pose.t = w.T.cast<double>();
-            e.ok = true;
-            e.status = "ok";
-        }
-    }
+    m.rotate(qs, out);
     const double ms_rot = ms_since(t0) / nq;
     for (auto& e : *out) {
         e.ms_seg = ms_seg;

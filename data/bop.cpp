@@ -129,9 +129,14 @@ std::string find_image(const Folder& f, const std::string& stem,
 std::map<int, ObjectModel> read_models(const fs::path& root, const std::string& name,
                                        const BopOptions& opt) {
     const fs::path dir = root / (opt.models_eval ? "models_eval" : "models");
-    G2L_CHECK(fs::is_directory(dir), "BOP models folder not found: '", dir.string(), "'");
+    // A models root is what g2l_render writes from any folder of meshes: say so, as a user
+    // with only meshes meets this first.
+    const char* how = " (a BOP models root holds models/obj_NNNNNN.ply and models/models_info.json; "
+                      "from a folder of meshes, 'g2l_render --models DIR --out ROOT --frames 1' "
+                      "writes one with the diameters and symmetries)";
+    G2L_CHECK(fs::is_directory(dir), "BOP models folder not found: '", dir.string(), "'", how);
     const fs::path info_path = dir / "models_info.json";
-    G2L_CHECK(fs::is_regular_file(info_path), "BOP file not found: '", info_path.string(), "'");
+    G2L_CHECK(fs::is_regular_file(info_path), "BOP file not found: '", info_path.string(), "'", how);
     const std::map<int, geom::ModelInfo> infos = geom::load_models_info_json(info_path.string());
 
     json names;

@@ -522,3 +522,14 @@ TEST_CASE("a models_info diameter that disagrees with the mesh is an error namin
                             Contains("centimetre / millimetre slip"));
     REQUIRE(ds.load_model_mesh(14).vertices.rows() > 0);  // its entry is right
 }
+
+TEST_CASE("a folder of meshes given as a models root says how to make one", "[data]") {
+    const std::string dir = g2l::testing::temp_dir("bop_meshes_only");
+    fs::copy_file(mini_root() + "/models/obj_000008.ply", dir + "/part.ply");
+    REQUIRE_THROWS_WITH(open_bop_models(dir, {}),
+                        Contains("BOP models folder not found: '" + dir + "/models'") &&
+                            Contains("'g2l_render --models DIR --out ROOT --frames 1' writes one"));
+    fs::create_directories(dir + "/models");
+    REQUIRE_THROWS_WITH(open_bop_models(dir, {}),
+                        Contains("models_info.json'") && Contains("g2l_render --models DIR"));
+}

@@ -488,11 +488,11 @@ TEST_CASE("g2l_train: a linemod_preprocessed source trains and validates like th
 
 TEST_CASE("g2l_train: train.time_schedule decays the learning rate of a run the time limit ends "
           "early", "[train][trainer]") {
-    // 20 epochs, lr x0.1 after epoch 10; a 1.2-second limit ends the run in its first epochs.
+    // 20 epochs, lr x0.1 after epoch 10; a 1.8-second limit ends the run in its first epochs.
     auto config = [](const std::string& dir, bool fit) {
         auto j = nlohmann::json::parse(tiny_config(dir, 20, 16));
         j["schedule"] = {{"kind", "step"}, {"step_epochs", 10}, {"gamma", 0.1}};
-        j["train"]["time_limit_min"] = 0.02;
+        j["train"]["time_limit_min"] = 0.03;
         j["train"]["time_schedule"] = fit;
         j["data"]["val"] = nlohmann::json::array();
         return train::parse_config_text(j.dump(), "t.json");
@@ -505,11 +505,13 @@ TEST_CASE("g2l_train: train.time_schedule decays the learning rate of a run the 
     REQUIRE(sa.stopped_early);
     REQUIRE(sb.stopped_early);
     REQUIRE(sb.epochs_done < 10);  // by epochs, the decay would not have come
-    const auto la = logged(a, "lr"), lb = logged(b, "lr");
-    INFO(la.size() << " and " << lb.size() << " steps in 1.2 s");
+    const auto la = logged(a, "lr"), lb = logged(b, "lr"), sb_s = logged(b, "step_s");
+    INFO(la.size() << " and " << lb.size() << " steps in 1.8 s, the last " << sb_s.back() << " s");
     for (double lr : la) REQUIRE(lr == Approx(1e-3));  // by epochs: never decayed
-    // By the clock: the first half of the limit at 1e-3, the second at 1e-4.
+    // By the clock: the first half of the limit at 1e-3, the second at 1e-4. The last step
+    // started at least (limit - its duration) into the run: past half the limit when steps
+    // are short (an instrumented build's may not be).
     REQUIRE(lb.front() == Approx(1e-3));
-    REQUIRE(lb.back() == Approx(1e-4));
+    if (sb_s.back() < 0.4 * 1.8) REQUIRE(lb.back() == Approx(1e-4));
     for (double lr : lb) REQUIRE((lr == Approx(1e-3) || lr == Approx(1e-4)));
 }

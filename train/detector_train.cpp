@@ -7,7 +7,6 @@
 #include "train/run_dir.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <deque>
@@ -40,7 +39,6 @@ namespace g2l::train {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
-using Clock = std::chrono::steady_clock;
 
 int64_t export_detector_average(const std::vector<std::string>& exports,
                                 const std::string& out_path) {

@@ -3,10 +3,8 @@
 #include "train/loop.h"
 #include "train/run_dir.h"
 
-#include <unistd.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -45,7 +43,6 @@ using eval::report_json;
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 
 uint64_t mix(uint64_t a, uint64_t b) { return mix_seed(a, b); }
 

@@ -233,113 +233,111 @@ std::vector<g2l::tools::BenchFigure> bench_soak(int frames, const std::string& m
             {"soak_rss_mb", rss_end, "MB", what}};
 }
 
+/// Everything the command line asks for.
+struct Job {
+    bool json = false, quick = false, pose_only = false, verbose = false;
+    int reps = 7, threads = 0, train_reps = 5, pose_reps = 21, det_reps = 30, refine_reps = 9;
+    int frame_reps = 9, frame_objects = 4, soak_frames = 0;
+    double width = 1.0;
+    std::string frame_model = std::string(G2L_SOURCE_DIR) + "/models/ycbv_sim2real.g2l";
+    std::string frame_detector = std::string(G2L_SOURCE_DIR) + "/models/ycbv_detector.g2l";
+};
+
+void add_options(CLI::App& app, Job& j) {
+    app.add_flag("--json", j.json, "print one JSON object instead of a table");
+    app.add_flag("--quick", j.quick, "fewer and smaller measurements (for smoke tests)");
+    app.add_option("--reps", j.reps, "timed repetitions per figure (median reported)")
+        ->check(CLI::Range(1, 1000));
+    app.add_option("--threads", j.threads, "OpenMP threads (0 = OMP_NUM_THREADS / all cores)")
+        ->check(CLI::Range(0, 1024));
+    app.add_option("--train-reps", j.train_reps, "timed G2L-Net training steps (0 = skip)")
+        ->check(CLI::Range(0, 1000));
+    app.add_option("--width", j.width, "G2L-Net width multiplier for the training figure")
+        ->check(CLI::Range(0.01, 4.0));
+    app.add_option("--pose-reps", j.pose_reps, "timed batch-1 pose estimations per setting (0 = skip)")
+        ->check(g2l::cli::at_least(0));
+    app.add_option("--detector-reps", j.det_reps, "timed 2D-detector runs on a 640 x 480 frame "
+                                                  "(0 = skip)")
+        ->check(CLI::Range(0, 100000));
+    app.add_option("--refine-reps", j.refine_reps, "timed depth refinements (--refine turns) of "
+                                                    "one object (0 = skip)")
+        ->check(CLI::Range(0, 100000));
+    app.add_flag("--pose-only", j.pose_only, "only the batch-1 pose figures (and peak RSS)");
+    app.add_option("--frame-reps", j.frame_reps, "timed runs of the whole pipeline on one real "
+                                                 "frame: detector, poses, refinement (0 = skip)")
+        ->check(CLI::Range(0, 100000));
+    app.add_option("--frame-objects", j.frame_objects, "boxes posed per frame (the detector's best)")
+        ->check(CLI::Range(1, 64));
+    app.add_option("--frame-model", j.frame_model, "pose model of the frame figure")
+        ->capture_default_str();
+    app.add_option("--frame-detector", j.frame_detector, "detector of the frame figure")
+        ->capture_default_str();
+    app.add_option("--soak-frames", j.soak_frames,
+                   "frames through one PoseEstimator for soak_rss_growth_pct (resident memory at "
+                   "frame 1000 against the end; 10000 takes ~5 min; 0 = skip)")
+        ->check(CLI::Range(0, 10000000));
+    app.add_flag("--verbose", j.verbose,
+                 "error messages with their source location (also G2L_VERBOSE=1)");
+}
+
+/// Every figure the job asks for, in the order printed.
+std::vector<g2l::tools::BenchFigure> measure(const Job& j) {
+    using Figures = std::vector<g2l::tools::BenchFigure>;
+    Figures figs = j.pose_only ? Figures{} : g2l::tools::bench_engine(j.reps, j.quick);
+    auto add = [&](const Figures& f) { figs.insert(figs.end(), f.begin(), f.end()); };
+    if (j.pose_reps > 0) {
+        // The settings: paper widths, 1500 -> 1000 points ("paper") and
+        // 1024 -> 512 ("fast"), batch 1.
+        const int pr = j.quick ? 2 : j.pose_reps;
+        for (const auto& [name, cp, op] : {std::tuple<const char*, int, int>{"pose_ms_paper", 1500, 1000},
+                                           {"pose_ms_fast", 1024, 512}}) {
+            add(g2l::tools::bench_pose(name, pr, 1.0, cp, op, true));
+            add(g2l::tools::bench_pose(std::string("graph_") + name, pr, 1.0, cp, op, false));
+        }
+    }
+    if (j.det_reps > 0)
+        for (bool mirror : {false, true})
+            add(g2l::tools::bench_detector(j.quick ? 2 : j.det_reps, 16, 2, mirror));
+    if (j.refine_reps > 0) add(g2l::tools::bench_refine(j.quick ? 2 : j.refine_reps));
+    if (j.frame_reps > 0 && !j.pose_only) {
+        add(bench_frame(j.quick ? 2 : j.frame_reps, j.frame_model, j.frame_detector,
+                        j.frame_objects));
+        add(bench_track(j.quick ? 1 : 3, j.frame_model, j.frame_detector));
+    }
+    if (j.soak_frames > 0) add(bench_soak(j.soak_frames, j.frame_model, j.frame_detector));
+    if (j.train_reps > 0 && !j.pose_only) {
+        // The setting: paper architecture, batch 8, 1500 -> 1000 points.
+        add(j.quick ? g2l::tools::bench_training(1, j.width, 2, 300, 200)
+                    : g2l::tools::bench_training(j.train_reps, j.width, 8, 1500, 1000));
+    }
+    figs.push_back({"peak_rss_mb", g2l::tools::peak_rss_mb(), "MB", "peak resident set size of this run"});
+    return figs;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
     CLI::App app{"g2l_bench: times the g2l engine on G2L-Net layer shapes (medians of repeated "
                  "runs). Figures are machine-dependent; see docs/results.md for recorded ones."};
-    bool json = false, quick = false;
-    int reps = 7, threads = 0, train_reps = 5;
-    double width = 1.0;
-    app.add_flag("--json", json, "print one JSON object instead of a table");
-    app.add_flag("--quick", quick, "fewer and smaller measurements (for smoke tests)");
-    app.add_option("--reps", reps, "timed repetitions per figure (median reported)")
-        ->check(CLI::Range(1, 1000));
-    app.add_option("--threads", threads, "OpenMP threads (0 = OMP_NUM_THREADS / all cores)")
-        ->check(CLI::Range(0, 1024));
-    app.add_option("--train-reps", train_reps, "timed G2L-Net training steps (0 = skip)")
-        ->check(CLI::Range(0, 1000));
-    app.add_option("--width", width, "G2L-Net width multiplier for the training figure")
-        ->check(CLI::Range(0.01, 4.0));
-    int pose_reps = 21;
-    bool pose_only = false;
-    app.add_option("--pose-reps", pose_reps, "timed batch-1 pose estimations per setting (0 = skip)")
-        ->check(g2l::cli::at_least(0));
-    int det_reps = 30;
-    app.add_option("--detector-reps", det_reps, "timed 2D-detector runs on a 640 x 480 frame "
-                                                "(0 = skip)")
-        ->check(CLI::Range(0, 100000));
-    int refine_reps = 9;
-    app.add_option("--refine-reps", refine_reps, "timed depth refinements (--refine turns) of one "
-                                                  "object (0 = skip)")
-        ->check(CLI::Range(0, 100000));
-    app.add_flag("--pose-only", pose_only, "only the batch-1 pose figures (and peak RSS)");
-    int frame_reps = 9, frame_objects = 4;
-    std::string frame_model = std::string(G2L_SOURCE_DIR) + "/models/ycbv_sim2real.g2l";
-    std::string frame_detector = std::string(G2L_SOURCE_DIR) + "/models/ycbv_detector.g2l";
-    app.add_option("--frame-reps", frame_reps, "timed runs of the whole pipeline on one real "
-                                               "frame: detector, poses, refinement (0 = skip)")
-        ->check(CLI::Range(0, 100000));
-    app.add_option("--frame-objects", frame_objects, "boxes posed per frame (the detector's best)")
-        ->check(CLI::Range(1, 64));
-    app.add_option("--frame-model", frame_model, "pose model of the frame figure")->capture_default_str();
-    app.add_option("--frame-detector", frame_detector, "detector of the frame figure")
-        ->capture_default_str();
-    int soak_frames = 0;
-    app.add_option("--soak-frames", soak_frames,
-                   "frames through one PoseEstimator for soak_rss_growth_pct (resident memory at "
-                   "frame 1000 against the end; 10000 takes ~5 min; 0 = skip)")
-        ->check(CLI::Range(0, 10000000));
-    bool verbose = false;
-    app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
+    Job j;
+    add_options(app, j);
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_bench"); rc >= 0) return rc;
     try {
-        if (threads > 0) g2l::set_num_threads(threads);
-        auto figs = pose_only ? std::vector<g2l::tools::BenchFigure>{}
-                              : g2l::tools::bench_engine(reps, quick);
-        if (pose_reps > 0) {
-            // The settings: paper widths, 1500 -> 1000 points ("paper") and
-            // 1024 -> 512 ("fast"), batch 1.
-            const int pr = quick ? 2 : pose_reps;
-            for (const auto& [name, cp, op] : {std::tuple<const char*, int, int>{"pose_ms_paper", 1500, 1000},
-                                               {"pose_ms_fast", 1024, 512}}) {
-                const auto pf = g2l::tools::bench_pose(name, pr, 1.0, cp, op, true);
-                figs.insert(figs.end(), pf.begin(), pf.end());
-                const auto pg = g2l::tools::bench_pose(std::string("graph_") + name, pr, 1.0, cp, op, false);
-                figs.insert(figs.end(), pg.begin(), pg.end());
-            }
-        }
-        if (det_reps > 0) {
-            for (bool mirror : {false, true}) {
-                const auto df = g2l::tools::bench_detector(quick ? 2 : det_reps, 16, 2, mirror);
-                figs.insert(figs.end(), df.begin(), df.end());
-            }
-        }
-        if (refine_reps > 0) {
-            const auto rf = g2l::tools::bench_refine(quick ? 2 : refine_reps);
-            figs.insert(figs.end(), rf.begin(), rf.end());
-        }
-        if (frame_reps > 0 && !pose_only) {
-            const auto ff = bench_frame(quick ? 2 : frame_reps, frame_model, frame_detector,
-                                        frame_objects);
-            figs.insert(figs.end(), ff.begin(), ff.end());
-            const auto tf = bench_track(quick ? 1 : 3, frame_model, frame_detector);
-            figs.insert(figs.end(), tf.begin(), tf.end());
-        }
-        if (soak_frames > 0) {
-            const auto sf = bench_soak(soak_frames, frame_model, frame_detector);
-            figs.insert(figs.end(), sf.begin(), sf.end());
-        }
-        if (train_reps > 0 && !pose_only) {
-            // The setting: paper architecture, batch 8, 1500 -> 1000 points.
-            const auto tf = quick ? g2l::tools::bench_training(1, width, 2, 300, 200)
-                                  : g2l::tools::bench_training(train_reps, width, 8, 1500, 1000);
-            figs.insert(figs.end(), tf.begin(), tf.end());
-        }
-        figs.push_back({"peak_rss_mb", g2l::tools::peak_rss_mb(), "MB", "peak resident set size of this run"});
-        if (json) {
-            nlohmann::json j;
-            j["threads"] = g2l::num_threads();
-            for (const auto& f : figs) j[f.name] = f.value;
-            std::cout << j.dump(2) << "\n";
+        if (j.threads > 0) g2l::set_num_threads(j.threads);
+        const auto figs = measure(j);
+        if (j.json) {
+            nlohmann::json out;
+            out["threads"] = g2l::num_threads();
+            for (const auto& f : figs) out[f.name] = f.value;
+            std::cout << out.dump(2) << "\n";
         } else {
-            std::printf("g2l_bench (%d threads, median of %d)\n", g2l::num_threads(), reps);
+            std::printf("g2l_bench (%d threads, median of %d)\n", g2l::num_threads(), j.reps);
             for (const auto& f : figs)
                 std::printf("  %-28s %10.2f %-9s  %s\n", f.name.c_str(), f.value, f.unit.c_str(),
                             f.detail.c_str());
         }
         return 0;
     } catch (const std::exception& e) {
-        return g2l::cli::report("g2l_bench", e, verbose);
+        return g2l::cli::report("g2l_bench", e, j.verbose);
     }
 }

@@ -5,6 +5,7 @@
 #include <sstream>
 #include <optional>
 
+#include "pipeline_cli.h"
 #include "core/cli.h"
 #include <cmath>
 #include <cstdio>
@@ -21,6 +22,7 @@
 #include "train/config.h"
 #include "train/detector_train.h"
 #include "eval/evaluate.h"
+#include "infer/frame_pipeline.h"
 #include "train/model_io.h"
 
 namespace {
@@ -165,13 +167,12 @@ struct Job {
     int64_t max_instances = 0;
     double min_visib = 0.0;
     bool min_visib_given = false;
-    int crop_points = -1, object_points = -1;
     std::string detector_path;
     bool det_mirror = false;
     std::string detections_path, bop_csv, instances_path, vis_dir, symmetric, poses_path;
     bool centre_from_mask = false;
-    std::string oracle = "none", refine = "turns";
-    g2l::infer::HypothesisOptions hyp_opt;
+    std::string oracle = "none";
+    g2l::PipelineOptions pipeline;  // the library's own options, as g2l_infer's
     std::string pr_png, hyps_path, fit_score;
     bool verbose = false;
 };
@@ -229,14 +230,6 @@ void add_options(CLI::App& app, Job& j) {
                                              "--boxes det, the source's min_visib_fract with "
                                              "--config)")
         ->check(CLI::Range(0.0, 1.0));
-    app.add_option("--crop-points", j.crop_points,
-                   "seg-net input points per crop (default: the checkpoint's sampling.points, as "
-                   "in training; 0 = the whole crop)")
-        ->check(g2l::cli::at_least(0));
-    app.add_option("--object-points", j.object_points,
-                   "object points fed to the T-net and rotation blocks (default: the checkpoint's "
-                   "sampling.seg_points)")
-        ->check(g2l::cli::at_least(1));
     app.add_flag("--centre-from-mask", j.centre_from_mask,
                  "take the sphere centre from the GT visible mask (the earlier protocol; default: "
                  "from the box and the depth only, as a detector would give it)");
@@ -246,33 +239,10 @@ void add_options(CLI::App& app, Job& j) {
                    "the segmentation), t (the GT translation replaces the T-net's and centres the "
                    "rotation input), seg+t (both: the errors are the rotation's alone); default none")
         ->check(CLI::IsMember({"none", "seg", "t", "seg+t"}));
-    app.add_option("--refine", j.refine,
-                   "depth refinement of each pose against the dataset's mesh: turns (default: ICP "
-                   "from the networks' pose and from it turned by the model box's near-symmetric "
-                   "turns, the best depth fit wins; ~40 ms per object), icp (ICP from the "
-                   "networks' pose only), none (the networks alone, as G2L-Net publishes them)")
-        ->check(CLI::IsMember({"none", "icp", "turns"}));
-    app.add_option("--min-pose-score", j.hyp_opt.min_score,
-                   "--boxes det / file: hypotheses whose depth-verified score is below this are "
-                   "rejected, not reported (default 0: every pose the verification ranks first)")
+    g2l::cli::add_pipeline_options(app, j.pipeline, "--max-per-object");
+    app.add_option("--min-det-score", j.pipeline.min_detection_score,
+                   "--boxes det / file: detections scoring below this are not tried (default 0.1)")
         ->check(CLI::Range(0.0, 1.0));
-    app.add_option("--max-per-object", j.hyp_opt.max_per_object,
-                   "--boxes det / file: peaks of one object tried per frame (several instances)")
-        ->check(g2l::cli::at_least(1));
-    app.add_option("--max-hypotheses", j.hyp_opt.max_hypotheses,
-                   "--boxes det / file: hypotheses posed and verified per frame")
-        ->check(g2l::cli::at_least(1));
-    app.add_option("--min-det-score", j.hyp_opt.min_det_score,
-                   "--boxes det / file: detections scoring below this are not tried")
-        ->check(CLI::Range(0.0, 1.0));
-    app.add_option("--alike", j.hyp_opt.alike_frac,
-                   "--boxes det / file: a peak is also tried as each object whose sorted box "
-                   "sides lie within this fraction of its own (0 = off)")
-        ->check(CLI::Range(0.0, 1.0));
-    app.add_option("--cover-score", j.hyp_opt.cover_score,
-                   "--boxes det / file: a detection whose peak lies on depth that an earlier "
-                   "verified pose scoring at least this explains is not posed (above 1 = off)")
-        ->check(CLI::Range(0.0, 2.0));
     app.add_option("--fit-score", j.fit_score,
                    "--boxes det / file: fit the score model (the probability that a verified "
                    "pose is right, ADD-S < 0.1 d) to this run's hypotheses and write its weights "
@@ -319,7 +289,7 @@ std::string usage_error(const Job& j) {
         if (s.rfind("data.val", 0) != 0)
             return "--set '" + s + "' has no effect on evaluation: only data.val.* keys apply (the "
                    "crop and point counts are the checkpoint's; see --crop-points / --object-points)";
-    return "";
+    return g2l::cli::pipeline_usage_error(j.pipeline);
 }
 
 /// --checkpoint absent: the detector alone, its recall and precision per object.
@@ -441,16 +411,12 @@ std::vector<EvalSet> open_sets(const Job& j, const g2l::train::LoadedModel& m) {
 g2l::eval::EvalOptions eval_options(const Job& j, const g2l::train::LoadedModel& m,
                                     const EvalSet& s) {
     g2l::eval::EvalOptions eo;
-    eo.crop = g2l::infer::parse_crop(m.crop, j.checkpoint + ": crop");
-    eo.radius_scale = m.radius_scale;
-    eo.crop_points = j.crop_points >= 0 ? j.crop_points : m.points;
-    eo.max_object_points = j.object_points > 0 ? j.object_points : m.seg_points;
+    eo.pipeline = j.pipeline;
     eo.max_instances = j.max_instances;
     eo.min_visib_fract = s.min_visib;
     eo.centre_from_mask = j.centre_from_mask;
     eo.oracle_seg = j.oracle == "seg" || j.oracle == "seg+t";
     eo.oracle_t = j.oracle == "t" || j.oracle == "seg+t";
-    eo.refine = g2l::infer::parse_refine(j.refine, "--refine");
     if (eo.min_visib_fract > 0) {
         bool annotated = false;
         for (const auto& f : s.ds->frames())
@@ -461,7 +427,6 @@ g2l::eval::EvalOptions eval_options(const Job& j, const g2l::train::LoadedModel&
                                  "evaluated)\n", eo.min_visib_fract,
                          s.name.c_str());
     }
-    eo.hypotheses = j.hyp_opt;
     return eo;
 }
 
@@ -578,19 +543,19 @@ int run_eval(const Job& j) {
         if (j.boxes == "det") {  // the detector on every frame (what its input needs), timed
             // Peaks per class: as many as the hypotheses road may try of one object.
             det_boxes = g2l::eval::run_detector_on(*det, *s.ds, 0.05f, j.det_mirror,
-                                                   std::max(3, j.hyp_opt.max_per_object));
+                                                   std::max(3, j.pipeline.max_instances));
             eo.detections = &det_boxes;
         }
         std::vector<g2l::eval::InstanceResult> inst;
         std::vector<g2l::eval::HypothesisRecord> hyps;
-        const auto r = g2l::eval::evaluate_instances(*m.net, *s.ds, m.class_of, m.keypoints, eo,
+        const auto r = g2l::eval::evaluate_instances(g2l::infer::PipelineModel::of(m), *s.ds, eo,
                                                       &inst, &hyps);
         std::printf("## %s (%s boxes, %s crop)\n\n%s\n", s.name.c_str(),
                     !j.poses_path.empty() ? ("poses " + j.poses_path).c_str()
                     : j.boxes == "gt"    ? "GT"
                     : j.boxes == "det"   ? ("detector " + j.detector_path).c_str()
                                          : ("detection file " + j.detections_path).c_str(),
-                    m.crop.c_str(), g2l::eval::report_markdown(r).c_str());
+                    g2l::geom::to_string(m.crop), g2l::eval::report_markdown(r).c_str());
         write_outputs(*s.ds, inst, hyps, out.csv.is_open() ? &out.csv : nullptr,
                       out.inst.is_open() ? &out.inst : nullptr, j.vis_dir, s.name);
         out.hypotheses(hyps, s.name);

@@ -16,6 +16,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "pipeline_cli.h"
 #include "core/cli.h"
 #include "core/error.h"
 #include "geometry/camera.h"
@@ -36,16 +37,17 @@ namespace fs = std::filesystem;
 struct Job {
     std::string model = "models/ycbv_sim2real.g2l";
     bool model_given = false;
-    std::string depth, rgb, camera, boxes, detector, models_info, refine, meshes;
+    std::string depth, rgb, camera, boxes;
+    g2l::EstimatorOptions est;  // the library's options, filled by the flags directly
     std::string scene, frames;  // a sequence: a BOP scene folder or a list file
     std::string json_out, vis, bop_csv;
     std::vector<std::string> box_args;
     std::vector<g2l::ObjectBox> hand_boxes;  // --box, parsed
     std::map<int, std::string> names;        // obj_names.json beside --meshes, for --vis
-    int scene_id = -1, image_id = -1, threads = 0, max_instances = 3, redetect_every = 10,
+    int scene_id = -1, image_id = -1, redetect_every = 10,
         redetect_weak_every = 3;
-    double min_score = 0, min_pose_score = 0;
-    bool min_score_given = false, det_mirror = false, keep_rejected = false, track = false,
+    double min_score = 0;
+    bool min_score_given = false, keep_rejected = false, track = false,
          quiet = false, verbose = false;
     bool sequence() const { return !scene.empty() || !frames.empty(); }
 };
@@ -96,11 +98,11 @@ void add_options(CLI::App& app, Job& j) {
                    "runs every N frames and decides it again (0 = --redetect-every)")
         ->check(CLI::Range(0, 1000000))
         ->capture_default_str();
-    app.add_option("--detector", j.detector,
+    app.add_option("--detector", j.est.detector,
                    "a 2D detector export (<run_dir>/detector.g2l of a \"task\": \"detector\" "
                    "training): finds the boxes on the frame instead of --boxes / --box; it sees "
                    "what its export says: the --rgb image, the depth, or both");
-    app.add_flag("--det-mirror", j.det_mirror,
+    app.add_flag("--det-mirror", j.est.detector_mirror,
                  "the detector also sees the image mirrored left-right and averages the two "
                  "class-probability maps (two network passes)");
     app.add_option("--camera", j.camera,
@@ -125,25 +127,12 @@ void add_options(CLI::App& app, Job& j) {
                    "one frame: a PNG; a video: a folder of numbered PNGs (<image id>.png): the "
                    "poses' 3D boxes (blue, with id and score; rejected hypotheses red) on the RGB "
                    "image (or the depth)");
-    app.add_option("--models-info", j.models_info,
+    app.add_option("--models-info", j.est.models_info,
                    "BOP models_info.json, for model files that do not store the diameters");
-    app.add_option("--threads", j.threads, "CPU threads (0 = all)")->check(CLI::Range(0, 1024));
-    app.add_option("--refine", j.refine,
-                   "depth refinement against the objects' meshes (needs --meshes): turns (ICP "
-                   "from the networks' pose and from its near-symmetric turns, the best depth fit "
-                   "wins; ~20 ms per object), icp (from the networks' pose only) or none; default "
-                   "turns with --meshes, none without")
-        ->check(CLI::IsMember({"none", "icp", "turns"}));
-    app.add_option("--meshes", j.meshes, "folder of the objects' meshes (obj_000005.ply ...; BOP "
+    app.add_option("--threads", j.est.threads, "CPU threads (0 = all)")->check(CLI::Range(0, 1024));
+    app.add_option("--meshes", j.est.meshes, "folder of the objects' meshes (obj_000005.ply ...; BOP "
                                          "models/): the poses are refined against them (--refine)");
-    app.add_option("--min-pose-score", j.min_pose_score,
-                   "poses whose depth-verified score (the probability that the pose is right, "
-                   "with --meshes) is below this are rejected: left out with --detector, marked "
-                   "\"low score\" with given boxes")
-        ->check(CLI::Range(0.0, 1.0));
-    app.add_option("--max-instances", j.max_instances,
-                   "--detector: peaks (instances) of one object tried per frame")
-        ->check(CLI::Range(1, 1000));
+    g2l::cli::add_pipeline_options(app, j.est, "--max-instances");
     app.add_flag("--keep-rejected", j.keep_rejected,
                  "--detector: also list the rejected hypotheses (status low score, duplicate or "
                  "overlap, with the winning pose's index in \"rival\")");
@@ -172,22 +161,25 @@ bool parse_box(const std::string& a, g2l::ObjectBox* out) {
 
 /// The usage rules; an empty string when the command line holds together.
 std::string usage_error(Job& j) {
-    const int sources = int(!j.boxes.empty()) + int(!j.box_args.empty()) + int(!j.detector.empty());
+    const int sources = int(!j.boxes.empty()) + int(!j.box_args.empty()) + int(!j.est.detector.empty());
     if (sources != 1) return "give exactly one of --boxes, --box and --detector";
     if (int(!j.depth.empty()) + int(!j.scene.empty()) + int(!j.frames.empty()) != 1)
         return "give exactly one of --depth (one frame), --scene (a BOP scene folder) and "
                "--frames (a list file)";
     if (j.camera.empty() && j.scene.empty())
         return "--camera is required (except with --scene, which reads its scene_camera.json)";
-    if (!j.refine.empty() && j.refine != "none" && j.meshes.empty())
-        return "--refine " + j.refine + " needs --meshes FOLDER (the objects' obj_NNNNNN.ply meshes)";
-    if (j.det_mirror && j.detector.empty()) return "--det-mirror needs --detector FILE";
+    if (j.est.refine != g2l::Refinement::none && j.est.refine != g2l::Refinement::automatic &&
+        j.est.meshes.empty())
+        return std::string("--refine ") + g2l::to_string(j.est.refine) +
+               " needs --meshes FOLDER (the objects' obj_NNNNNN.ply meshes)";
+    if (j.est.detector_mirror && j.est.detector.empty()) return "--det-mirror needs --detector FILE";
     if (j.sequence() && !j.box_args.empty())
         return "--box is for one frame; a video takes --detector or --boxes (a BOP detection file "
                "with image ids)";
     if (j.sequence() && !j.rgb.empty()) return "--rgb is for one frame (--scene and --frames name their own)";
     if (j.track && !j.sequence()) return "--track follows poses across the frames of --scene or --frames";
-    if (j.track && (j.detector.empty() || j.meshes.empty() || j.refine == "none"))
+    if (j.track && (j.est.detector.empty() || j.est.meshes.empty() ||
+                    j.est.refine == g2l::Refinement::none))
         return "--track needs --detector and --meshes (it follows the poses against the meshes)";
     for (const std::string& a : j.box_args) {
         g2l::ObjectBox b;
@@ -196,24 +188,14 @@ std::string usage_error(Job& j) {
                    "H > 0)";
         j.hand_boxes.push_back(b);
     }
-    return "";
+    return g2l::cli::pipeline_usage_error(j.est);
 }
 
 g2l::EstimatorOptions estimator_options(const Job& j) {
-    g2l::EstimatorOptions opt;
-    opt.threads = j.threads;
-    opt.models_info = j.models_info;
-    opt.detector = j.detector;
-    opt.detector_mirror = j.det_mirror;
-    opt.refine = j.refine.empty()      ? g2l::Refinement::automatic  // turns with --meshes
-                 : j.refine == "icp"   ? g2l::Refinement::icp
-                 : j.refine == "turns" ? g2l::Refinement::turns
-                                       : g2l::Refinement::none;
-    opt.meshes = j.meshes;
-    opt.min_pose_score = j.min_pose_score;
-    opt.max_instances = j.max_instances;
+    g2l::EstimatorOptions opt = j.est;
     opt.keep_rejected = true;  // drawn by --vis; left out of the JSON unless asked
-    if (!j.detector.empty() && j.min_score_given) opt.min_detection_score = j.min_score;
+    // --min-score: the BOP detection file's threshold (default 0) and, given, the detector's.
+    if (!j.est.detector.empty() && j.min_score_given) opt.min_detection_score = j.min_score;
     return opt;
 }
 
@@ -311,9 +293,9 @@ json frame_json(const Job& j, const LoadedFrame& f, const std::vector<g2l::Objec
         const g2l::ObjectPose& p = poses[i];
         // Rejected hypotheses of the detector road only with --keep-rejected (a rejected
         // given box keeps its place: one entry per box).
-        if (!j.detector.empty() && rejected(p) && !j.keep_rejected) continue;
+        if (!j.est.detector.empty() && rejected(p) && !j.keep_rejected) continue;
         const std::array<int, 4> bb =
-            j.detector.empty() ? std::array<int, 4>{{boxes[i].x, boxes[i].y, boxes[i].w, boxes[i].h}}
+            j.est.detector.empty() ? std::array<int, 4>{{boxes[i].x, boxes[i].y, boxes[i].w, boxes[i].h}}
                                : p.bbox;
         json o = {{"obj_id", p.obj_id}, {"status", g2l::to_string(p.status)}, {"ok", p.ok()},
                   {"score", p.score}, {"detection_score", p.detection_score},
@@ -338,7 +320,7 @@ json frame_json(const Job& j, const LoadedFrame& f, const std::vector<g2l::Objec
         if (p.ok() && !p.refined && refining) {
             char mesh_name[32];
             std::snprintf(mesh_name, sizeof mesh_name, "obj_%06d.ply", p.obj_id);
-            o["note"] = g2l::cat("not refined: no ", mesh_name, " in --meshes '", j.meshes, "'");
+            o["note"] = g2l::cat("not refined: no ", mesh_name, " in --meshes '", j.est.meshes, "'");
         }
         if (p.ok() || rejected(p)) {
             o["R"] = p.R;
@@ -484,22 +466,22 @@ int run_frame(Job& j, const std::vector<g2l::data::Detection>& dets) {
     for (const g2l::ObjectBox& b : j.hand_boxes) boxes.push_back(b);
     const g2l::EstimatorOptions opt = estimator_options(j);
     g2l::PoseEstimator est(j.model, opt);
-    if (!j.detector.empty() && j.rgb.empty() && est.detector_input() != "depth") {
+    if (!j.est.detector.empty() && j.rgb.empty() && est.detector_input() != "depth") {
         std::fprintf(stderr, "g2l_infer: --detector '%s' is an %s detector: it needs the --rgb "
-                             "image\n", j.detector.c_str(), est.detector_input().c_str());
+                             "image\n", j.est.detector.c_str(), est.detector_input().c_str());
         return g2l::cli::kUsageError;
     }
     // With the detector: the hypotheses road (several instances per object, each pose
     // verified, duplicates and overlaps rejected); with boxes: one pose per box.
     const auto t0 = std::chrono::steady_clock::now();
     const std::vector<g2l::ObjectPose> poses =
-        j.detector.empty() ? est.estimate(f.view(), boxes) : est.estimate(f.view());
+        j.est.detector.empty() ? est.estimate(f.view(), boxes) : est.estimate(f.view());
     const double sec =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     int implausible = 0;
     warn_implausible(poses, std::to_string(std::max(0, j.image_id)).c_str(), &implausible);
     const bool refining = !opt.meshes.empty() && opt.refine != g2l::Refinement::none;
-    if (!j.vis.empty()) draw_poses(j.vis, f, poses, est, object_names(j.meshes));
+    if (!j.vis.empty()) draw_poses(j.vis, f, poses, est, object_names(j.est.meshes));
     std::ofstream csv = open_csv(j.bop_csv);
     if (csv.is_open()) csv_rows(csv, std::max(0, j.scene_id), std::max(0, j.image_id), poses, sec);
     close_csv(csv, j.bop_csv);
@@ -547,7 +529,7 @@ int run_sequence(Job& j, const std::vector<g2l::data::Detection>& dets) {
             G2L_CHECK(fs::is_directory(*dir, ec), "'", *dir, "' is not a folder and cannot be made");
         }
     std::ofstream csv = open_csv(j.bop_csv);
-    if (!j.vis.empty()) j.names = object_names(j.meshes);
+    if (!j.vis.empty()) j.names = object_names(j.est.meshes);
     const std::string camera_source = j.scene.empty() ? j.camera : j.scene + "/scene_camera.json";
     int failed = 0, detected = 0, implausible = 0;
     double total_ms = 0;
@@ -559,14 +541,14 @@ int run_sequence(Job& j, const std::vector<g2l::data::Detection>& dets) {
         std::snprintf(id, sizeof id, "%06d", sf.image_id);
         try {
             const LoadedFrame f = load_frame(sf, camera_source);
-            G2L_CHECK(j.detector.empty() || !f.rgb.data.empty() || est.detector_input() == "depth",
+            G2L_CHECK(j.est.detector.empty() || !f.rgb.data.empty() || est.detector_input() == "depth",
                       "frame ", id, " has no RGB image and the --detector is an ",
                       est.detector_input(), " detector");
             const std::vector<g2l::ObjectBox> boxes = boxes_of(dets, j, scene_id, sf.image_id);
             const auto t0 = std::chrono::steady_clock::now();
             const std::vector<g2l::ObjectPose> poses =
                 tracker ? tracker->track(f.view())
-                : j.detector.empty() ? est.estimate(f.view(), boxes) : est.estimate(f.view());
+                : j.est.detector.empty() ? est.estimate(f.view(), boxes) : est.estimate(f.view());
             const double ms = std::chrono::duration<double, std::milli>(
                                   std::chrono::steady_clock::now() - t0).count();
             total_ms += ms;

@@ -85,113 +85,125 @@ int run_export(const std::vector<std::string>& export_args,
     }
 }
 
-}  // namespace
 
-int main(int argc, char** argv) {
-    const DistSession dist_session(&argc, &argv);
-    namespace dist = g2l::train::dist;
-    CLI::App app{"g2l_train: trains G2L-Net (segmentation, translation and rotation networks) "
-                 "from a JSON config. Writes the run directory: config.json, steps.jsonl, "
-                 "epochs.jsonl, last.g2l, best.g2l, epoch_<k>.g2l. A config with \"task\": "
-                 "\"detector\" trains the 2D detector instead (run directory: config.json, "
-                 "steps.jsonl, last.g2l, detector.g2l)."};
+/// Everything the command line asks for.
+struct Job {
     std::string config, resume;
-    std::vector<std::string> sets;
+    std::vector<std::string> sets, export_args, average_args;
     int64_t max_steps = 0;
-    bool quiet = false;
-    std::vector<std::string> export_args;
-    app.add_option("--config", config, "JSON config (see configs/ and docs/config.md)");
-    app.add_option("--set", sets, "override a key, e.g. --set optim.lr=5e-4 --set "
-                                  "data.train.0.frames=100 (repeatable)")
+    bool quiet = false, force = false, verbose = false;
+};
+
+void add_options(CLI::App& app, Job& j) {
+    app.add_option("--config", j.config, "JSON config (see configs/ and docs/config.md)");
+    app.add_option("--set", j.sets, "override a key, e.g. --set optim.lr=5e-4 --set "
+                                    "data.train.0.frames=100 (repeatable)")
         ->check(g2l::cli::key_value());
-    app.add_option("--resume", resume, "continue the run in this directory exactly where it "
-                                        "stopped (uses its config.json unless --config is given)");
-    app.add_option("--max-steps", max_steps, "stop with a checkpoint after this many optimizer "
-                                             "steps in total (0 = train to the end)")
+    app.add_option("--resume", j.resume, "continue the run in this directory exactly where it "
+                                          "stopped (uses its config.json unless --config is given)");
+    app.add_option("--max-steps", j.max_steps, "stop with a checkpoint after this many optimizer "
+                                               "steps in total (0 = train to the end)")
         ->check(g2l::cli::at_least(0));
-    app.add_flag("--quiet", quiet, "no progress output (errors still go to stderr)");
-    bool force = false;
-    app.add_flag("--force", force, "start over in a run directory that already holds a run "
-                                   "(without it such a directory is refused; see --resume)");
-    app.add_option("--export", export_args,
+    app.add_flag("--quiet", j.quiet, "no progress output (errors still go to stderr)");
+    app.add_flag("--force", j.force, "start over in a run directory that already holds a run "
+                                     "(without it such a directory is refused; see --resume)");
+    app.add_option("--export", j.export_args,
                    "CHECKPOINT OUT: write an inference export of a training checkpoint (weights, "
                    "model config, object ids, keypoints; no optimizer state) and exit")
         ->expected(2);
-    std::vector<std::string> average_args;
-    app.add_option("--average", average_args,
+    app.add_option("--average", j.average_args,
                    "OUT CHECKPOINT CHECKPOINT...: write an inference export whose weights are the "
                    "mean of two or more checkpoints of one run (e.g. its last epoch_N.g2l files) "
                    "and exit; with detector exports (detector.g2l), a detector export whose "
                    "weights and BatchNorm statistics are their mean")
         ->expected(3, 1000);
-    bool verbose = false;
-    app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
+    app.add_flag("--verbose", j.verbose,
+                 "error messages with their source location (also G2L_VERBOSE=1)");
+}
+
+/// A run stopped by SIGINT / SIGTERM: it wrote its checkpoint; say how to continue. In a
+/// data-parallel job every rank stops after the same step (the stop flags travel with the
+/// gradients); rank 0, which wrote the checkpoint, says so.
+int interrupted(int64_t steps, const std::string& run_dir) {
+    const int sig = g_signal != 0 ? int(g_signal) : SIGTERM;
+    if (g2l::train::dist::is_root())
+        std::fprintf(stderr, "g2l_train: %s after step %lld: checkpoint written, continue "
+                             "with --resume %s\n",
+                     g_signal == 0      ? "stopped (another rank of the job got a signal)"
+                     : sig == SIGINT    ? "interrupted (SIGINT)"
+                                        : "terminated (SIGTERM)",
+                     (long long)steps, run_dir.c_str());
+    return 128 + sig;
+}
+
+/// The training the config asks for (a pose model, or with "task": "detector" the detector),
+/// its closing line; the exit code.
+int train(const Job& j) {
+    namespace dist = g2l::train::dist;
+    const std::string cfg_path = j.config.empty() ? j.resume + "/config.json" : j.config;
+    std::signal(SIGINT, on_signal);
+    std::signal(SIGTERM, on_signal);
+    g2l::train::TrainOptions opt;
+    opt.resume_dir = j.resume;
+    opt.max_steps = j.max_steps;
+    opt.progress = !j.quiet;
+    opt.force = j.force;
+    opt.stop_flag = &g_stop;
+    const bool detector = g2l::train::is_detector_config(cfg_path);  // "task": "detector"
+    if (!j.resume.empty() && !j.sets.empty())
+        refuse_meaning_changes(j.resume, cfg_path, j.sets, detector);
+    if (detector) {
+        const auto dcfg = g2l::train::load_detector_config(cfg_path, j.sets);
+        const auto s = g2l::train::run_detector_training(dcfg, opt);
+        if (s.interrupted) return interrupted(s.steps, s.run_dir);
+        if (!j.quiet && dist::is_root())
+            std::printf("g2l_train: detector %s after %lld steps, %.1f images/s; export %s/"
+                        "detector.g2l%s\n",
+                        s.stopped_early ? "stopped" : "finished", (long long)s.steps,
+                        s.images_per_s, s.run_dir.c_str(),
+                        s.evaluated ? g2l::cat("; validation mean recall@0.5 ",
+                                               100 * s.val.mean_recall, "%").c_str()
+                                    : "");
+        return 0;
+    }
+    g2l::train::TrainConfig cfg = g2l::train::load_config(cfg_path, j.sets);
+    const auto s = g2l::train::run_training(cfg, opt);
+    if (s.interrupted) return interrupted(s.steps, s.run_dir);
+    if (!j.quiet && dist::is_root())
+        std::printf("g2l_train: %s after %lld steps (%d epochs), %.2f samples/s; best val "
+                    "ADD-sym acc@0.1d %s; run dir %s\n",
+                    s.stopped_early ? "stopped" : "finished", (long long)s.steps, s.epochs_done,
+                    s.samples_per_s, s.best_val >= 0 ? std::to_string(s.best_val).c_str() : "n/a",
+                    s.run_dir.c_str());
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    const DistSession dist_session(&argc, &argv);
+    CLI::App app{"g2l_train: trains G2L-Net (segmentation, translation and rotation networks) "
+                 "from a JSON config. Writes the run directory: config.json, steps.jsonl, "
+                 "epochs.jsonl, last.g2l, best.g2l, epoch_<k>.g2l. A config with \"task\": "
+                 "\"detector\" trains the 2D detector instead (run directory: config.json, "
+                 "steps.jsonl, last.g2l, detector.g2l)."};
+    Job j;
+    add_options(app, j);
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_train"); rc >= 0) return rc;
-    if (!export_args.empty() || !average_args.empty())
-        return run_export(export_args, average_args, verbose);
-    if (config.empty() && resume.empty()) {
+    if (!j.export_args.empty() || !j.average_args.empty())
+        return run_export(j.export_args, j.average_args, j.verbose);
+    if (j.config.empty() && j.resume.empty()) {
         std::fprintf(stderr, "g2l_train: give --config FILE (or --resume RUN_DIR)\n%s",
                      app.help().c_str());
         return 2;
     }
-    // A run stopped by SIGINT / SIGTERM: it wrote its checkpoint; say how to continue.
-    // In a data-parallel job every rank stops after the same step (the stop flags travel with
-    // the gradients); rank 0, which wrote the checkpoint, says so.
-    auto interrupted = [](int64_t steps, const std::string& run_dir) {
-        const int sig = g_signal != 0 ? int(g_signal) : SIGTERM;
-        if (dist::is_root())
-            std::fprintf(stderr, "g2l_train: %s after step %lld: checkpoint written, continue "
-                                 "with --resume %s\n",
-                         g_signal == 0      ? "stopped (another rank of the job got a signal)"
-                         : sig == SIGINT    ? "interrupted (SIGINT)"
-                                            : "terminated (SIGTERM)",
-                         (long long)steps, run_dir.c_str());
-        return 128 + sig;
-    };
-    // Under mpirun a failing rank would leave the others waiting in a collective: it ends the
-    // whole job (MPI_Abort) after naming what failed. Checkpoints are written atomically, so
-    // the last one stays intact.
-    auto failed = [&](const std::exception& e) {
-        const int rc = g2l::cli::report("g2l_train", e, verbose);
-        return dist::abort_job(std::string("failed: ") + e.what(), rc);
-    };
     try {
-        const std::string cfg_path = config.empty() ? resume + "/config.json" : config;
-        std::signal(SIGINT, on_signal);
-        std::signal(SIGTERM, on_signal);
-        g2l::train::TrainOptions opt;
-        opt.resume_dir = resume;
-        opt.max_steps = max_steps;
-        opt.progress = !quiet;
-        opt.force = force;
-        opt.stop_flag = &g_stop;
-        const bool detector = g2l::train::is_detector_config(cfg_path);  // "task": "detector"
-        if (!resume.empty() && !sets.empty()) refuse_meaning_changes(resume, cfg_path, sets, detector);
-        if (detector) {
-            const auto dcfg = g2l::train::load_detector_config(cfg_path, sets);
-            const auto s = g2l::train::run_detector_training(dcfg, opt);
-            if (s.interrupted) return interrupted(s.steps, s.run_dir);
-            if (!quiet && dist::is_root())
-                std::printf("g2l_train: detector %s after %lld steps, %.1f images/s; export %s/"
-                            "detector.g2l%s\n",
-                            s.stopped_early ? "stopped" : "finished", (long long)s.steps,
-                            s.images_per_s, s.run_dir.c_str(),
-                            s.evaluated ? g2l::cat("; validation mean recall@0.5 ",
-                                              100 * s.val.mean_recall, "%").c_str()
-                                        : "");
-            return 0;
-        }
-        g2l::train::TrainConfig cfg = g2l::train::load_config(cfg_path, sets);
-        const auto s = g2l::train::run_training(cfg, opt);
-        if (s.interrupted) return interrupted(s.steps, s.run_dir);
-        if (!quiet && dist::is_root())
-            std::printf("g2l_train: %s after %lld steps (%d epochs), %.2f samples/s; best val ADD-sym acc@0.1d "
-                    "%s; run dir %s\n",
-                    s.stopped_early ? "stopped" : "finished", (long long)s.steps, s.epochs_done,
-                    s.samples_per_s, s.best_val >= 0 ? std::to_string(s.best_val).c_str() : "n/a",
-                    s.run_dir.c_str());
-        return 0;
+        return train(j);
     } catch (const std::exception& e) {
-        return failed(e);
+        // Under mpirun a failing rank would leave the others waiting in a collective: it ends
+        // the whole job (MPI_Abort) after naming what failed. Checkpoints are written
+        // atomically, so the last one stays intact.
+        const int rc = g2l::cli::report("g2l_train", e, j.verbose);
+        return g2l::train::dist::abort_job(std::string("failed: ") + e.what(), rc);
     }
 }

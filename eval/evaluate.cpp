@@ -171,11 +171,9 @@ void given_poses(const std::vector<const data::PoseRow*>& rows, const data::Data
 
 }  // namespace
 
-EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
-                             const std::map<int, int>& class_of,
-                             const std::vector<std::vector<Eigen::Vector3f>>& keypoints,
+EvalReport evaluate_gt_boxes(const infer::PipelineModel& model, const data::Dataset& ds,
                              const EvalOptions& opt) {
-    return evaluate_instances(net, ds, class_of, keypoints, opt, nullptr);
+    return evaluate_instances(model, ds, opt, nullptr);
 }
 
 namespace {
@@ -187,11 +185,10 @@ namespace {
 // library's hypotheses, or given poses, matched to the ground truth as BOP does).
 class Evaluation {
 public:
-    Evaluation(nn::G2LNet& net, const data::Dataset& ds, const std::map<int, int>& class_of,
-               const std::vector<std::vector<Eigen::Vector3f>>& keypoints, const EvalOptions& opt,
+    Evaluation(const infer::PipelineModel& model, const data::Dataset& ds, const EvalOptions& opt,
                std::vector<HypothesisRecord>* hyps_out)
-        : ds_(ds), class_of_(class_of), opt_(opt), hyps_out_(hyps_out),
-          pipe_(pipeline_model(net, ds, class_of, keypoints, opt), pipeline_options(opt)) {
+        : ds_(ds), class_of_(model.class_of), opt_(opt), hyps_out_(hyps_out),
+          pipe_(with_dataset_diameters(model, ds), opt.pipeline) {
         if (opt.detections) {
             for (size_t i = 0; i < opt.detections->size(); ++i) {
                 const data::Detection& d = (*opt.detections)[i];
@@ -208,13 +205,13 @@ public:
         }
         if (opt.poses)
             for (const data::PoseRow& r : *opt.poses)
-                if (class_of.count(r.obj_id)) frame_poses_[{r.scene_id, r.image_id}].push_back(&r);
+                if (class_of_.count(r.obj_id)) frame_poses_[{r.scene_id, r.image_id}].push_back(&r);
         if (hyps_out_) hyps_out_->clear();
         // The hypotheses road may pose any object of the model the dataset has a mesh of (a
         // peak is also tried as the objects of a like shape).
         if (matched_road())
             for (const auto& [id, om] : ds.models())
-                if (class_of.count(id)) prepare(id), (void)om;
+                if (class_of_.count(id)) prepare(id), (void)om;
     }
 
     bool matched_road() const { return opt_.detections || opt_.poses; }
@@ -225,7 +222,7 @@ public:
 
     EvalReport report(std::vector<InstanceResult>* instances_out) const {
         EvalReport rep = aggregate(results_, meta_);
-        rep.refine = opt_.refine;
+        rep.refine = pipe_.refine();
         rep.oracle = opt_.oracle_seg ? (opt_.oracle_t ? "seg+t" : "seg") : opt_.oracle_t ? "t" : "none";
         if (instances_out) *instances_out = results_;
         if (instances_ > 0) {
@@ -237,26 +234,13 @@ public:
     }
 
 private:
-    static infer::PipelineModel pipeline_model(nn::G2LNet& net, const data::Dataset& ds,
-                                               const std::map<int, int>& class_of,
-                                               const std::vector<std::vector<Eigen::Vector3f>>& kp,
-                                               const EvalOptions& opt) {
-        infer::PipelineModel pm;
-        pm.net = &net;
-        pm.class_of = class_of;
-        pm.keypoints = kp;
-        pm.crop = infer::to_string(opt.crop);
-        pm.radius_scale = opt.radius_scale;
+    // The dataset's diameters: the sphere radius and the metrics' 10 % both use them.
+    static infer::PipelineModel with_dataset_diameters(infer::PipelineModel pm,
+                                                       const data::Dataset& ds) {
+        pm.diameter.clear();
         for (const auto& [id, om] : ds.models())
-            if (class_of.count(id)) pm.diameter[id] = om.info.diameter;
+            if (pm.class_of.count(id)) pm.diameter[id] = om.info.diameter;
         return pm;
-    }
-    static infer::PipelineOptions pipeline_options(const EvalOptions& opt) {
-        infer::PipelineOptions po;
-        po.crop_points = std::max(0, opt.crop_points);
-        po.object_points = opt.max_object_points;
-        po.refine = opt.refine;
-        return po;
     }
 
     // Once per object: its mesh in the pipeline, its metric points and symmetries.
@@ -446,11 +430,11 @@ void Evaluation::matched_frame(const data::Frame& f) {
     const auto fd = frame_dets_.find({scene_id, f.image_id});
     const std::vector<infer::Candidate> cands =
         fd == frame_dets_.end() ? std::vector<infer::Candidate>{}
-                                : pipe_.candidates(fd->second, opt_.hypotheses);
+                                : pipe_.candidates(fd->second);
     if (opt_.poses)
         given_poses(frame_poses_[{scene_id, f.image_id}], ds_, K, &hyps_);
     else
-        pipe_.hypotheses(depth.data(), K, cands, opt_.hypotheses, &hyps_);
+        pipe_.hypotheses(depth.data(), K, cands, &hyps_);
     for (const infer::Hypothesis& hy : hyps_) add_times(hy.outcome);
     const Matching m = match(gts, counted);
     for (size_t g = 0; g < gts.size(); ++g) {
@@ -514,7 +498,7 @@ void Evaluation::gt_frame(const data::Frame& f) {
         infer::PoseRequest q;
         q.obj_id = inst.obj_id;
         q.box = inst.box();
-        if (opt_.centre_from_mask && opt_.crop != infer::CropKind::frustum) {
+        if (opt_.centre_from_mask && pipe_.model().crop != geom::CropKind::frustum) {
             Eigen::Vector3d c;
             const geom::Box2i box = geom::clip_box(q.box, K.width, K.height);
             r.box = box;
@@ -557,7 +541,8 @@ void Evaluation::gt_frame(const data::Frame& f) {
         r.ms = o.ms_crop + o.ms_seg + o.ms_t + o.ms_rot + o.ms_refine;
         add_times(o);
         if (o.num_crop_points > 0 && !gt_obj[i].empty()) {
-            const int n_seen = opt_.crop_points > 0 ? opt_.crop_points : int(o.crop.rows());
+            const int n_seen = pipe_.options().crop_points > 0 ? pipe_.options().crop_points
+                                                              : int(o.crop.rows());
             r.seg_iou = rows_iou(nn::even_sample(int(o.crop.rows()), n_seen), o.object_rows, gt_obj[i]);
         }
         if (!o.ok()) continue;
@@ -580,17 +565,17 @@ void Evaluation::gt_frame(const data::Frame& f) {
 
 }  // namespace
 
-EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
-                              const std::map<int, int>& class_of,
-                              const std::vector<std::vector<Eigen::Vector3f>>& keypoints,
+EvalReport evaluate_instances(const infer::PipelineModel& model, const data::Dataset& ds,
                               const EvalOptions& opt, std::vector<InstanceResult>* instances_out,
                               std::vector<HypothesisRecord>* hyps_out) {
+    G2L_CHECK(model.net, "evaluate: the model has no network");
+    nn::G2LNet& net = *model.net;
     const bool was_training = net.is_training();
     net.eval();
     autograd::NoGradGuard no_grad;
     EvalReport rep;
     {
-        Evaluation ev(net, ds, class_of, keypoints, opt, hyps_out);
+        Evaluation ev(model, ds, opt, hyps_out);
         for (const data::Frame& f : ds.frames()) {
             if (ev.full()) break;
             if (ev.matched_road())
@@ -743,9 +728,9 @@ std::string report_markdown(const EvalReport& r) {
                                : std::string("ground-truth object points and translation")) +
             " replace the network's.\n\n";
     // The table always says which stages its poses went through.
-    s += std::string("Depth refinement (") + infer::to_string(r.refine) + "): " +
-         (r.refine == infer::Refine::none ? std::string("none, the networks' poses as they are")
-          : r.refine == infer::Refine::icp
+    s += std::string("Depth refinement (") + g2l::to_string(r.refine) + "): " +
+         (r.refine == Refinement::none ? std::string("none, the networks' poses as they are")
+          : r.refine == Refinement::icp
               ? std::string("ICP of the object points onto the mesh")
               : std::string("ICP onto the mesh from the pose and its near-symmetric turns, the "
                             "best depth fit wins")) +
@@ -847,7 +832,7 @@ std::string report_json(const EvalReport& r) {
     j["average"] = obj(r.average);
     j["timing_ms"] = {{"crop", r.ms_crop}, {"seg", r.ms_seg}, {"t", r.ms_t}, {"rot", r.ms_rot},
                       {"refine", r.ms_refine}};
-    j["refine"] = infer::to_string(r.refine);
+    j["refine"] = g2l::to_string(r.refine);
     j["instances"] = r.instances;
     j["oracle"] = r.oracle;
     return j.dump(2);

@@ -16,13 +16,16 @@
 
 namespace g2l::eval {
 
+/// What to evaluate and how. The pipeline's settings are the library's own options (the crop,
+/// its radius and point counts the model was trained with come with the model:
+/// infer::PipelineModel).
 struct EvalOptions {
-    infer::CropKind crop = infer::CropKind::sphere;  ///< as in training
-    double radius_scale = 1.0;       ///< sphere radius = radius_scale x diameter
+    /// The pose pipeline's options, as the library and g2l_infer take them (PipelineOptions's
+    /// defaults: the model's point counts, `automatic` refinement = `turns` against the
+    /// dataset's meshes, the hypotheses road's settings for detections).
+    PipelineOptions pipeline;
     double min_visib_fract = 0.0;    ///< instances below are skipped (not counted)
-    int64_t max_instances = 0;       ///< 0 = all
-    int max_object_points = 2000;    ///< object points fed to the T / rotation nets
-    int crop_points = 0;             ///< seg-net input points (training's sampling.points; 0 = all)
+    int64_t max_instances = 0;       ///< instances evaluated at most (0 = all)
     /// Sphere centre: false (default) = from the box and the depth only, as a detector gives
     /// it; true = the GT visible mask's centre (the earlier protocol, for comparison).
     bool centre_from_mask = false;
@@ -41,8 +44,6 @@ struct EvalOptions {
     /// matched to the ground-truth instances as `detections`' poses are (each pose's box: its
     /// posed model box's projection). Rows of objects the model does not know are ignored.
     const std::vector<data::PoseRow>* poses = nullptr;
-    /// The hypotheses road's settings (with detections).
-    infer::HypothesisOptions hypotheses;
     /// Oracle inputs, to tell which stage an error comes from (the rest runs as usual):
     /// oracle_seg = the ground-truth object points (the crop points within label_threshold_mm
     /// of the posed model, training's label rule) replace the segmentation; oracle_t = the GT
@@ -51,9 +52,6 @@ struct EvalOptions {
     bool oracle_seg = false;
     bool oracle_t = false;
     double label_threshold_mm = 8.0;  ///< the object-point rule of the seg IoU and oracle_seg
-    /// Depth refinement of each pose (geometry/refine.h) against the dataset's mesh: none, icp
-    /// (ICP from the network's pose) or turns (also from its near-symmetric turns).
-    infer::Refine refine = infer::Refine::none;
 };
 
 /// Per-object and overall figures. Misses (no pose) count as failures, with distance inf in
@@ -98,7 +96,7 @@ struct EvalReport {
     ObjectScores average;               ///< objects' mean (acc, AUCs); "all" counts for others
     double ms_crop = 0, ms_seg = 0, ms_t = 0, ms_rot = 0;  ///< mean per instance
     double ms_refine = 0;                  ///< depth refinement, mean per instance
-    infer::Refine refine = infer::Refine::none;  ///< EvalOptions::refine
+    Refinement refine = Refinement::none;  ///< the pipeline's refinement (resolved)
     int instances = 0;
     std::string oracle = "none";  ///< oracle inputs used: none, seg, t or seg+t (EvalOptions)
 };
@@ -186,18 +184,14 @@ struct ObjectMeta {
 EvalReport aggregate(const std::vector<InstanceResult>& results,
                      const std::map<int, ObjectMeta>& meta);
 
-/// class_of maps obj_id -> class index of the network (objects not in it are skipped);
-/// keypoints[class index] are the model keypoints the network was trained with.
-EvalReport evaluate_gt_boxes(nn::G2LNet& net, const data::Dataset& ds,
-                             const std::map<int, int>& class_of,
-                             const std::vector<std::vector<Eigen::Vector3f>>& keypoints,
+/// `model`: the network and what it was trained with (its class_of maps obj_id -> class index;
+/// objects not in it are skipped). The objects' diameters are the dataset's.
+EvalReport evaluate_gt_boxes(const infer::PipelineModel& model, const data::Dataset& ds,
                              const EvalOptions& opt);
 
 /// evaluate_gt_boxes with every per-instance result (in frame order) in *instances and, with
 /// detections, every hypothesis in *hypotheses (either may be null).
-EvalReport evaluate_instances(nn::G2LNet& net, const data::Dataset& ds,
-                              const std::map<int, int>& class_of,
-                              const std::vector<std::vector<Eigen::Vector3f>>& keypoints,
+EvalReport evaluate_instances(const infer::PipelineModel& model, const data::Dataset& ds,
                               const EvalOptions& opt, std::vector<InstanceResult>* instances,
                               std::vector<HypothesisRecord>* hypotheses = nullptr);
 

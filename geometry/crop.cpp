@@ -7,13 +7,31 @@
 #include "core/error.h"
 
 namespace g2l::geom {
-std::vector<int> crop_indices(const std::string& crop, const Points& pts,
-                              const Eigen::Vector3d& centre, double radius) {
-    G2L_CHECK(crop == "sphere" || crop == "slab" || crop == "frustum",
-              "crop must be \"sphere\", \"slab\" or \"frustum\", got \"", crop, "\"");
+
+CropKind parse_crop(const std::string& text, const std::string& what) {
+    if (text == "sphere") return CropKind::sphere;
+    if (text == "frustum") return CropKind::frustum;
+    if (text == "slab") return CropKind::slab;
+    G2L_CHECK(false, what, " must be sphere, frustum or slab, got '", text, "'");
+    return CropKind::sphere;
+}
+
+const char* to_string(CropKind c) {
+    switch (c) {
+        case CropKind::sphere: return "sphere";
+        case CropKind::frustum: return "frustum";
+        case CropKind::slab: return "slab";
+    }
+    return "unknown crop";
+}
+
+std::vector<int> crop_indices(CropKind crop, const Points& pts, const Eigen::Vector3d& centre,
+                              double radius) {
+    G2L_CHECK(crop == CropKind::sphere || crop == CropKind::slab || crop == CropKind::frustum,
+              "crop_indices: unknown crop kind ", int(crop));
     const int n = static_cast<int>(pts.rows());
     std::vector<int> kept;
-    if (crop == "frustum") {
+    if (crop == CropKind::frustum) {
         kept.resize(size_t(n));
         for (int i = 0; i < n; ++i) kept[size_t(i)] = i;
         return kept;
@@ -24,7 +42,7 @@ std::vector<int> crop_indices(const std::string& crop, const Points& pts,
               centre.z(), ") is not finite");
     kept.reserve(static_cast<size_t>(n));
     const double r2 = radius * radius;
-    const bool sphere = crop == "sphere";
+    const bool sphere = crop == CropKind::sphere;
     for (int i = 0; i < n; ++i) {
         const Eigen::Vector3d p = pts.row(i).cast<double>().transpose();
         if (sphere ? (p - centre).squaredNorm() < r2 : std::abs(p.z() - centre.z()) < radius)
@@ -33,7 +51,7 @@ std::vector<int> crop_indices(const std::string& crop, const Points& pts,
     return kept;
 }
 
-Points crop_points(const std::string& crop, const Points& pts, const Eigen::Vector3d& centre,
+Points crop_points(CropKind crop, const Points& pts, const Eigen::Vector3d& centre,
                    double radius) {
     const std::vector<int> keep = crop_indices(crop, pts, centre, radius);
     Points out(int64_t(keep.size()), 3);

@@ -11,17 +11,27 @@
 
 namespace g2l::geom {
 
+/// The crop around the sphere centre (spec §2): one value from the training config through the
+/// checkpoint to inference.
+enum class CropKind {
+    sphere,   ///< |p - centre| < radius (the paper)
+    frustum,  ///< every valid depth point of the 2D box (the Frustum-PointNets baseline)
+    slab,     ///< |z - centre_z| < radius (the released code's depth slab)
+};
+/// "sphere" / "frustum" / "slab"; anything else throws g2l::Error naming `what` and the value.
+CropKind parse_crop(const std::string& text, const std::string& what);
+const char* to_string(CropKind c);
+
 /// The one crop step of training samples and inference: indices (ascending) of the rows of
 /// `pts` kept by `crop` around `centre` — "sphere": |p - centre| < radius, "slab":
 /// |z - centre_z| < radius (the released code's depth slab), "frustum": every row.
-/// Serial (several sample-making threads call it at once). Throws g2l::Error for another crop
-/// name, or (sphere/slab) a radius that is not finite and > 0 or a centre that is not finite.
-std::vector<int> crop_indices(const std::string& crop, const Points& pts,
+/// Serial (several sample-making threads call it at once). Throws g2l::Error for (sphere/slab) a radius that is not finite and > 0 or a centre that is not finite.
+std::vector<int> crop_indices(CropKind crop, const Points& pts,
                               const Eigen::Vector3d& centre, double radius);
 
 /// The rows of `pts` that crop_indices keeps, in order, as a new point set (what the networks
 /// get: training samples, g2l_eval and the inference library crop through this pair).
-Points crop_points(const std::string& crop, const Points& pts, const Eigen::Vector3d& centre,
+Points crop_points(CropKind crop, const Points& pts, const Eigen::Vector3d& centre,
                    double radius);
 
 /// `box` clipped to a width x height image (an empty box when nothing is left).

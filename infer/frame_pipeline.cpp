@@ -19,38 +19,8 @@ double ms_since(Clock::time_point t0) {
 }
 }  // namespace
 
-Refine parse_refine(const std::string& text, const std::string& what) {
-    if (text == "none") return Refine::none;
-    if (text == "icp") return Refine::icp;
-    if (text == "turns") return Refine::turns;
-    G2L_CHECK(false, what, " must be none, icp or turns, got '", text, "'");
-    return Refine::none;
-}
-
-const char* to_string(Refine r) {
-    switch (r) {
-        case Refine::none: return "none";
-        case Refine::icp: return "icp";
-        case Refine::turns: return "turns";
-    }
-    return "unknown refinement";
-}
-
-CropKind parse_crop(const std::string& text, const std::string& what) {
-    if (text == "sphere") return CropKind::sphere;
-    if (text == "frustum") return CropKind::frustum;
-    if (text == "slab") return CropKind::slab;
-    G2L_CHECK(false, what, " must be sphere, frustum or slab, got '", text, "'");
-    return CropKind::sphere;
-}
-
-const char* to_string(CropKind c) {
-    switch (c) {
-        case CropKind::sphere: return "sphere";
-        case CropKind::frustum: return "frustum";
-        case CropKind::slab: return "slab";
-    }
-    return "unknown crop";
+Refinement parse_refine(const std::string& text, const std::string& what) {
+    return parse_refinement(text, what);
 }
 
 const char* to_string(PoseStatus s) {
@@ -94,17 +64,11 @@ PipelineModel PipelineModel::of(const nn::LoadedModel& m) {
 }
 
 FramePipeline::FramePipeline(PipelineModel model, const PipelineOptions& opt)
-    : model_(std::move(model)), opt_(opt) {
+    : model_(std::move(model)) {
     G2L_CHECK(model_.net, "FramePipeline: the model has no network");
-    G2L_CHECK(opt.crop_points >= -1, "FramePipeline: crop_points must be >= -1, got ",
-              opt.crop_points);
-    G2L_CHECK(opt.object_points == -1 || opt.object_points >= 1,
-              "FramePipeline: object_points must be -1 or >= 1, got ", opt.object_points);
     G2L_CHECK(std::isfinite(model_.radius_scale) && model_.radius_scale > 0,
               "FramePipeline: radius_scale must be > 0, got ", model_.radius_scale);
-    crop_kind_ = parse_crop(model_.crop, "FramePipeline: the model's crop");
-    if (opt_.crop_points < 0) opt_.crop_points = model_.points;
-    if (opt_.object_points < 0) opt_.object_points = model_.seg_points;
+    opt_ = resolved(opt);
     for (const auto& [id, cls] : model_.class_of)
         G2L_CHECK(cls >= 0 && size_t(cls) < model_.keypoints.size(), "FramePipeline: object ", id,
                   " has class index ", cls, " but the model has ", model_.keypoints.size(),
@@ -112,11 +76,30 @@ FramePipeline::FramePipeline(PipelineModel model, const PipelineOptions& opt)
     engine_ = std::make_unique<nn::PoseEngine>(*model_.net);
 }
 
+PipelineOptions FramePipeline::resolved(const PipelineOptions& opt) const {
+    opt.check();
+    PipelineOptions r = opt;
+    if (r.crop_points < 0) r.crop_points = model_.points;
+    if (r.object_points < 0) r.object_points = model_.seg_points;
+    // Objects without a mesh keep the networks' pose whatever the setting, so `automatic`
+    // (refine what can be refined) is `turns` here.
+    if (r.refine == Refinement::automatic) r.refine = Refinement::turns;
+    return r;
+}
+
+void FramePipeline::set_options(const PipelineOptions& opt) {
+    PipelineOptions r = resolved(opt);
+    G2L_CHECK(r.refine == opt_.refine, "FramePipeline::set_options: the refinement cannot "
+              "change from ", to_string(opt_.refine), " to ", to_string(r.refine),
+              " (the meshes were prepared for it): make a new pipeline");
+    opt_ = r;
+}
+
 FramePipeline::~FramePipeline() = default;
 FramePipeline::FramePipeline(FramePipeline&&) noexcept = default;
 
 void FramePipeline::add_mesh(int obj_id, const geom::Mesh& mesh, const geom::ModelInfo& info) {
-    meshes_[obj_id] = PreparedMesh::from_mesh(mesh, info, opt_.refine != Refine::none);
+    meshes_[obj_id] = PreparedMesh::from_mesh(mesh, info, opt_.refine != Refinement::none);
 }
 
 const PreparedMesh* FramePipeline::mesh(int obj_id) const {
@@ -146,7 +129,7 @@ void FramePipeline::crop(const float* depth, const geom::Intrinsics& K,
             p.status = PoseStatus::box_outside_image;
             continue;
         }
-        if (crop_kind_ == CropKind::frustum) {
+        if (model_.crop == geom::CropKind::frustum) {
             // every point of the box: no centre needed
             p.crop = geom::depth_to_points(depth, W, H, K, p.box);
         } else {  // the centre first: a box without depth there is not back-projected at all
@@ -163,8 +146,7 @@ void FramePipeline::crop(const float* depth, const geom::Intrinsics& K,
             const auto d = model_.diameter.find(r.obj_id);
             G2L_CHECK(d != model_.diameter.end() && d->second > 0, "FramePipeline: no diameter "
                       "for object ", r.obj_id, " (the sphere crop needs it)");
-            p.crop = geom::crop_points(to_string(crop_kind_),
-                                       geom::depth_to_points(depth, W, H, K, p.box), c,
+            p.crop = geom::crop_points(model_.crop, geom::depth_to_points(depth, W, H, K, p.box), c,
                                        model_.radius_scale * d->second);
         }
         p.num_crop_points = int(p.crop.rows());
@@ -209,7 +191,7 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
         }
         p.pose = e.pose;
         // 2. Depth refinement against the mesh (geometry/refine.h).
-        if (opt_.refine == Refine::none) continue;
+        if (opt_.refine == Refinement::none) continue;
         const auto t0 = Clock::now();
         const auto me = meshes_.find(p.obj_id);
         geom::Points obs(int64_t(p.object_rows.size()), 3);
@@ -218,7 +200,7 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
         if (obs.rows() >= 3 && me != meshes_.end()) {
             const PreparedMesh& m = me->second;
             geom::RefineOptions ro;
-            ro.hypotheses = opt_.refine == Refine::turns;
+            ro.hypotheses = opt_.refine == Refinement::turns;
             const geom::DepthImage di{depth, K};
             const geom::RefineResult rr =
                 geom::refine_pose(*m.tree, m.info, obs, p.pose, ro, &di, &m.normals, &m.grid);
@@ -298,20 +280,14 @@ Eigen::Vector3d sorted_sides(const geom::ModelInfo& info) {
 
 }  // namespace
 
-std::vector<Candidate> FramePipeline::candidates(const std::vector<Candidate>& detections,
-                                                 const HypothesisOptions& opt) const {
-    G2L_CHECK(opt.max_per_object >= 1 && opt.max_hypotheses >= 1 && opt.min_det_score >= 0 &&
-                  opt.alike_frac >= 0 && opt.alike_discount >= 0 && opt.alike_discount <= 1,
-              "FramePipeline::candidates: options out of range (max_per_object ",
-              opt.max_per_object, ", max_hypotheses ", opt.max_hypotheses, ", min_det_score ",
-              opt.min_det_score, ", alike_frac ", opt.alike_frac, ", alike_discount ",
-              opt.alike_discount, ")");
+std::vector<Candidate> FramePipeline::candidates(const std::vector<Candidate>& detections) const {
+    const PipelineOptions& opt = opt_;
     std::vector<Candidate> all;
     for (const Candidate& d : detections) {
         // Objects the model does not know, or whose size it was not given (evaluation on a
         // dataset with a part of the model's objects), are not posed.
         if (!model_.class_of.count(d.obj_id) || !model_.diameter.count(d.obj_id) ||
-            !(d.det_score >= opt.min_det_score))
+            !(d.det_score >= opt.min_detection_score))
             continue;
         Candidate c = d;
         c.det_obj_id = d.obj_id;
@@ -330,8 +306,8 @@ std::vector<Candidate> FramePipeline::candidates(const std::vector<Candidate>& d
             if (!like) continue;
             Candidate alt = c;
             alt.obj_id = id;
-            alt.det_score = c.det_score * opt.alike_discount;
-            if (alt.det_score >= opt.min_det_score) all.push_back(alt);
+            alt.det_score = c.det_score * tuning_.alike_discount;
+            if (alt.det_score >= opt.min_detection_score) all.push_back(alt);
         }
     }
     // The order the budget (max_hypotheses) is spent in: each object's best own peak first
@@ -359,7 +335,7 @@ std::vector<Candidate> FramePipeline::candidates(const std::vector<Candidate>& d
         for (const Candidate& o : out)
             seen = seen || (o.obj_id == c.obj_id && o.box.x == c.box.x && o.box.y == c.box.y &&
                             o.box.w == c.box.w && o.box.h == c.box.h);
-        if (seen || per_object[c.obj_id] >= opt.max_per_object) continue;
+        if (seen || per_object[c.obj_id] >= opt.max_instances) continue;
         per_object[c.obj_id]++;
         out.push_back(c);
     }
@@ -380,17 +356,16 @@ geom::Verification FramePipeline::verify(const float* depth, const geom::Intrins
 }
 
 void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
-                               const std::vector<Candidate>& cands, const HypothesisOptions& opt,
-                               std::vector<Hypothesis>* out, const std::vector<Hypothesis>* seeds) {
-    G2L_CHECK(opt.min_score >= 0 && opt.duplicate_frac >= 0 && opt.overlap_frac > 0,
-              "FramePipeline::hypotheses: options out of range (min_score ", opt.min_score,
-              ", duplicate_frac ", opt.duplicate_frac, ", overlap_frac ", opt.overlap_frac, ")");
+                               const std::vector<Candidate>& cands, std::vector<Hypothesis>* out,
+                               const std::vector<Hypothesis>* seeds) {
+    const PipelineOptions& opt = opt_;
+    const HypothesisTuning& tune = tuning_;
     // 1-2. Each candidate, in order, through the one road (crop, networks, refinement) and the
     //      verification against the depth, unless an earlier confident pose already explains
     //      the depth at its peak.
-    const int fc = opt.verify.footprint_cell_px;
+    const int fc = tune.verify.footprint_cell_px;
     const int fw = (K.width + fc - 1) / fc;
-    const double cover = std::max(opt.cover_score, opt.min_score);
+    const double cover = std::max(opt.cover_score, opt.min_pose_score);
     const size_t ns = seeds ? seeds->size() : 0;
     std::vector<Hypothesis> hs(ns + cands.size());
     for (size_t i = 0; i < ns; ++i) {  // posed already: only their verdicts are decided here
@@ -446,9 +421,9 @@ void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
         if (!h.outcome.ok()) continue;
         if (mesh(h.cand.obj_id)) {
             const auto t0 = Clock::now();
-            h.check = verify(depth, K, h.outcome, opt.verify);
+            h.check = verify(depth, K, h.outcome, tune.verify);
             h.verified = true;
-            h.score = opt.score_model.probability(h.check, h.cand.det_score,
+            h.score = tune.score_model.probability(h.check, h.cand.det_score,
                                                   h.cand.det_obj_id != h.cand.obj_id);
             h.outcome.ms_refine += ms_since(t0);  // verification is part of the depth stage
         }
@@ -478,7 +453,7 @@ void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
             h.verdict = Verdict::implausible;
             continue;
         }
-        if (h.score < opt.min_score) {
+        if (h.score < opt.min_pose_score) {
             h.verdict = Verdict::low_score;
             continue;
         }
@@ -487,14 +462,14 @@ void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
             const Hypothesis& w = hs[k];
             if (w.cand.obj_id == h.cand.obj_id) {
                 const double d = model_.diameter.at(h.cand.obj_id);
-                if ((w.outcome.pose.t - h.outcome.pose.t).norm() < opt.duplicate_frac * d) {
+                if ((w.outcome.pose.t - h.outcome.pose.t).norm() < tune.duplicate_frac * d) {
                     h.verdict = Verdict::duplicate;
                     h.rival = int(k);
                     break;
                 }
             }
             if (h.verified && w.verified &&
-                geom::footprint_overlap(w.check.footprint, h.check.footprint) > opt.overlap_frac) {
+                geom::footprint_overlap(w.check.footprint, h.check.footprint) > tune.overlap_frac) {
                 h.verdict = Verdict::overlap;
                 h.rival = int(k);
                 break;
@@ -581,11 +556,10 @@ std::vector<Eigen::Vector3f> points_near_pose(const float* depth, const geom::In
 }  // namespace
 
 Hypothesis FramePipeline::follow(const float* depth, const geom::Intrinsics& K,
-                                 const Hypothesis& last, const HypothesisOptions& opt,
-                                 const TrackOptions& topt) const {
+                                 const Hypothesis& last, const TrackOptions& topt) const {
     const int obj = last.cand.obj_id;
     const PreparedMesh* m = mesh(obj);
-    G2L_CHECK(m && opt_.refine != Refine::none, "FramePipeline::follow: object ", obj,
+    G2L_CHECK(m && opt_.refine != Refinement::none, "FramePipeline::follow: object ", obj,
               m ? ": the pipeline does not refine (tracking needs the refinement)"
                 : " has no mesh (tracking needs it)");
     G2L_CHECK(depth != nullptr && K.width > 0 && K.height > 0,
@@ -659,9 +633,9 @@ Hypothesis FramePipeline::follow(const float* depth, const geom::Intrinsics& K,
     o.fit_mm = rr.fit_mm;
     o.refined = true;
     // 4. Verified and scored like a detection's pose.
-    h.check = verify(depth, K, o, opt.verify);
+    h.check = verify(depth, K, o, tuning_.verify);
     h.verified = true;
-    h.score = opt.score_model.probability(h.check, h.cand.det_score,
+    h.score = tuning_.score_model.probability(h.check, h.cand.det_score,
                                           h.cand.det_obj_id != h.cand.obj_id);
     o.ms_refine = ms_since(t1);
     return h;

@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include "g2l/pose_estimator.h"
+#include "geometry/crop.h"
 #include "geometry/model_info.h"
 #include "geometry/refine.h"
 #include "geometry/types.h"
@@ -26,22 +28,9 @@
 
 namespace g2l::infer {
 
-/// The depth refinement of each pose.
-enum class Refine {
-    none,   ///< the networks' pose as it is
-    icp,    ///< ICP of the object points onto the mesh from the networks' pose
-    turns,  ///< also from that pose turned by the model box's near-symmetric turns; best fit wins
-};
-/// "none" / "icp" / "turns" (the spelling of every command line and config); anything else
-/// throws g2l::Error naming `what` and the value.
-Refine parse_refine(const std::string& text, const std::string& what);
-const char* to_string(Refine r);
-
-/// The crop around the sphere centre (spec §2; geometry/crop.h).
-enum class CropKind { sphere, frustum, slab };
-/// "sphere" / "frustum" / "slab"; anything else throws g2l::Error naming `what` and the value.
-CropKind parse_crop(const std::string& text, const std::string& what);
-const char* to_string(CropKind c);
+/// "none" / "icp" / "turns" / "automatic" (the spelling of every command line and config);
+/// anything else throws g2l::Error naming `what` and the value.
+Refinement parse_refine(const std::string& text, const std::string& what);
 
 /// What the refinement (and evaluation's object-point rule) needs of one object's mesh,
 /// prepared once per object: the surface k-d tree (vertices + surface samples), and for the
@@ -106,18 +95,12 @@ struct PipelineModel {
     std::map<int, int> class_of;  ///< obj_id -> class index
     std::vector<std::vector<Eigen::Vector3f>> keypoints;  ///< class index -> model keypoints
     std::map<int, double> diameter;  ///< obj_id -> mm; the sphere radius is radius_scale x it
-    std::string crop = "sphere";     ///< the crop the network was trained with
+    geom::CropKind crop = geom::CropKind::sphere;  ///< the crop the network was trained with
     double radius_scale = 1.0;
     int points = 0;                  ///< seg-net input points per crop (0 = the whole crop)
     int seg_points = 2000;           ///< object points fed to the T-net and the rotation blocks
     /// A loaded model file's (its diameters: the stored ones).
     static PipelineModel of(const nn::LoadedModel& m);
-};
-
-struct PipelineOptions {
-    int crop_points = -1;    ///< seg-net input points (-1: the model's `points`; 0: all)
-    int object_points = -1;  ///< object points to the T-net / rotation (-1: the model's)
-    Refine refine = Refine::none;
 };
 
 /// A detection to pose: the detector's box and class-probability peak of one object.
@@ -127,7 +110,7 @@ struct Candidate {
     double peak_x = -1, peak_y = -1;  ///< the class-probability peak (px); < 0: none
     double det_score = 0;             ///< the detector's heat at the peak
     /// The object the detector's peak was for: obj_id itself, or an object of a like shape
-    /// whose peak this candidate re-uses (HypothesisOptions::alike_frac).
+    /// whose peak this candidate re-uses (PipelineOptions::alike_frac).
     int det_obj_id = 0;
 };
 
@@ -151,21 +134,14 @@ struct ScoreModel {
     double probability(const geom::Verification& v, double det_score, bool borrowed) const;
 };
 
-/// How a frame's candidates become its poses (spec §16): every candidate is posed by the
-/// networks and refined, verified against the depth (geometry/verify.h), and the best explained
-/// kept, suppressing duplicates and overlaps.
-struct HypothesisOptions {
-    int max_per_object = 3;   ///< candidates of one object kept (its best peaks)
-    int max_hypotheses = 12;  ///< candidates posed per frame, best detection scores first
-    double min_det_score = 0.1;  ///< candidates the detector scores below are not posed
-    /// A peak of one object is also tried as each object whose sorted box sides all lie within
-    /// this fraction of its own (depth-only detectors confuse such objects); 0 = off.
-    double alike_frac = 0.15;
-    /// Such a borrowed peak enters with this share of its detection score.
+/// The fixed settings of the hypotheses road (spec §16; what a user may change is in
+/// g2l::PipelineOptions): every candidate is posed by the networks and refined, verified
+/// against the depth (geometry/verify.h), and the best explained kept, suppressing duplicates
+/// and overlaps.
+struct HypothesisTuning {
+    /// A peak borrowed from an object of a like shape (PipelineOptions::alike_frac) enters with
+    /// this share of its detection score.
     double alike_discount = 0.8;
-    /// Verified score below this: rejected ("low score"). Without a mesh nothing is verified and
-    /// the score is the detection's.
-    double min_score = 0.0;
     /// Two poses of one object whose centres lie closer than this fraction of its diameter are
     /// one instance: the lower score is a duplicate.
     double duplicate_frac = 0.5;
@@ -173,12 +149,6 @@ struct HypothesisOptions {
     /// (geom::footprint_overlap) is rejected ("overlap"): two objects cannot fill the same
     /// space.
     double overlap_frac = 0.3;
-    /// Candidates are posed in their order; one whose peak (else its box centre) lies on depth
-    /// that an earlier verified pose scoring at least this explains is not posed at all
-    /// ("covered"): second looks at a found object are rarely right and cost a full pose.
-    /// Chosen on held-out renders (docs/results.md): 0.7 keeps every figure of posing all and
-    /// saves ~30% of the time; 0.5 saved ~40% and lost 1.4 points. Above 1 = off.
-    double cover_score = 0.7;
     geom::VerifyOptions verify;
     ScoreModel score_model;
 };
@@ -187,7 +157,7 @@ struct HypothesisOptions {
 enum class Verdict {
     accepted,
     no_pose,     ///< the pipeline gave no pose (PoseOutcome::status says why)
-    low_score,   ///< verified score below HypothesisOptions::min_score
+    low_score,   ///< verified score below PipelineOptions::min_pose_score
     duplicate,   ///< another pose of the same object at the same place scored higher
     overlap,     ///< a higher-scored pose claims the same depth
     covered,     ///< not posed: its peak lies on depth a verified pose already explains
@@ -210,7 +180,7 @@ struct Hypothesis {
     PoseOutcome outcome;
     bool verified = false;        ///< a mesh verified it (else score = det_score)
     geom::Verification check;     ///< when verified
-    /// The probability that the pose is right (HypothesisOptions::score_model over the check
+    /// The probability that the pose is right (HypothesisTuning::score_model over the check
     /// and the detection), or det_score when not verified.
     double score = 0;
     Verdict verdict = Verdict::no_pose;
@@ -244,9 +214,9 @@ struct TrackOptions {
 
 class FramePipeline {
 public:
-    /// Throws g2l::Error for a null network, options out of range, or a crop kind other than
-    /// sphere / frustum / slab. (An object without a diameter is refused when a box of it is
-    /// cropped, naming it.)
+    /// Throws g2l::Error for a null network or options out of range (PipelineOptions::check).
+    /// (An object without a diameter is refused when a box of it is cropped, naming it.)
+    /// `automatic` refinement refines the objects given a mesh (add_mesh) with `turns`.
     FramePipeline(PipelineModel model, const PipelineOptions& opt);
     ~FramePipeline();
     FramePipeline(FramePipeline&&) noexcept;
@@ -259,8 +229,13 @@ public:
     const PreparedMesh* mesh(int obj_id) const;
 
     const PipelineModel& model() const { return model_; }
+    /// The options, -1 point counts resolved to the model's and `automatic` to `turns`.
     const PipelineOptions& options() const { return opt_; }
-    Refine refine() const { return opt_.refine; }
+    /// New options for the next frames (checked and resolved as the constructor's); the
+    /// refinement cannot change (add_mesh prepared the meshes for it): throws g2l::Error.
+    void set_options(const PipelineOptions& opt);
+    Refinement refine() const { return opt_.refine; }
+    const HypothesisTuning& tuning() const { return tuning_; }
 
     /// Step 1: the crop of every request (`depth_mm` is K.height x K.width, 0 = no depth).
     void crop(const float* depth_mm, const geom::Intrinsics& K,
@@ -273,40 +248,41 @@ public:
     void run(const float* depth_mm, const geom::Intrinsics& K,
              const std::vector<PoseRequest>& requests, std::vector<PoseOutcome>* out);
 
-    /// The candidates of a frame's detections: per object its best `max_per_object`, plus each
-    /// detection tried as the objects of a like shape (HypothesisOptions::alike_frac; needs
-    /// their meshes' boxes), at most `max_hypotheses`, best score first. Detections of objects
-    /// the model does not know (or knows no diameter of) are dropped.
-    std::vector<Candidate> candidates(const std::vector<Candidate>& detections,
-                                      const HypothesisOptions& opt) const;
+    /// The candidates of a frame's detections: per object its best `max_instances` scoring at
+    /// least `min_detection_score`, plus each detection tried as the objects of a like shape
+    /// (PipelineOptions::alike_frac; needs their meshes' boxes), at most `max_hypotheses`, best
+    /// score first. Detections of objects the model does not know (or knows no diameter of) are
+    /// dropped.
+    std::vector<Candidate> candidates(const std::vector<Candidate>& detections) const;
     /// The hypotheses road: every candidate, in order, through crop, networks and refinement
     /// (unless an earlier verified pose already explains the depth at its peak:
-    /// HypothesisOptions::cover_score), verified against the depth (objects with a mesh), then
+    /// PipelineOptions::cover_score), verified against the depth (objects with a mesh), then
     /// ranked by score with duplicates and overlaps suppressed. *out: one Hypothesis per
     /// candidate, accepted ones first by score, then the rejected ones by score. Deterministic.
     /// `seeds` (optional): hypotheses posed already (tracked poses, FramePipeline::follow) that
     /// enter ahead of the candidates: they take part in the covered test and the selection like
     /// the candidates' poses.
     void hypotheses(const float* depth_mm, const geom::Intrinsics& K,
-                    const std::vector<Candidate>& candidates, const HypothesisOptions& opt,
-                    std::vector<Hypothesis>* out, const std::vector<Hypothesis>* seeds = nullptr);
+                    const std::vector<Candidate>& candidates, std::vector<Hypothesis>* out,
+                    const std::vector<Hypothesis>* seeds = nullptr);
     /// Follows `last` (an accepted pose of the previous frame, of an object with a mesh) into
     /// this frame: the depth points near its posed surface, ICP from its pose, verified and
     /// scored as a hypothesis (tracked = true, its candidate and track id kept). Its box is the
     /// image box of the searched sphere; status box_outside_image when that leaves the image,
     /// too_few_object_points when fewer than 10 points lie near the surface (the object left or
     /// moved too far). Throws g2l::Error when the object has no mesh or the pipeline does not
-    /// refine (Refine::none).
+    /// refine (Refinement::none).
     Hypothesis follow(const float* depth_mm, const geom::Intrinsics& K, const Hypothesis& last,
-                      const HypothesisOptions& opt, const TrackOptions& topt) const;
+                      const TrackOptions& topt) const;
     /// Verifies one posed outcome (status ok, object with a mesh) against the depth.
     geom::Verification verify(const float* depth_mm, const geom::Intrinsics& K,
                               const PoseOutcome& o, const geom::VerifyOptions& opt) const;
 
 private:
+    PipelineOptions resolved(const PipelineOptions& opt) const;
     PipelineModel model_;
     PipelineOptions opt_;
-    CropKind crop_kind_;
+    HypothesisTuning tuning_;
     std::unique_ptr<nn::PoseEngine> engine_;
     std::map<int, PreparedMesh> meshes_;
     // Reused between frames.

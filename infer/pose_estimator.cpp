@@ -43,16 +43,6 @@ const char* to_string(PoseStatus s) {
     return "unknown status";
 }
 
-const char* to_string(Refinement r) {
-    switch (r) {
-        case Refinement::none: return "none";
-        case Refinement::icp: return "icp";
-        case Refinement::turns: return "turns";
-        case Refinement::automatic: return "automatic";
-    }
-    return "unknown refinement";
-}
-
 struct PoseEstimator::Impl {
     std::string path;
     nn::LoadedModel model;
@@ -70,19 +60,9 @@ struct PoseEstimator::Impl {
     // detect() under the mutex.
     std::vector<ObjectBox> detect(const FrameView& f);
     // A frame's detections as the hypotheses road's candidates.
-    std::vector<infer::Candidate> detections(const std::vector<ObjectBox>& boxes,
-                                             const infer::HypothesisOptions& ho);
+    std::vector<infer::Candidate> detections(const std::vector<ObjectBox>& boxes);
     // The road's hypotheses as the public poses (keep_rejected: the rejected ones too).
     std::vector<ObjectPose> to_public(const std::vector<infer::Hypothesis>& hs) const;
-    infer::HypothesisOptions hypothesis_options() const {
-        infer::HypothesisOptions h;
-        h.max_per_object = options.max_instances;
-        h.max_hypotheses = options.max_hypotheses;
-        h.min_det_score = options.min_detection_score;
-        h.alike_frac = options.alike_hypotheses ? h.alike_frac : 0.0;
-        h.min_score = options.min_pose_score;
-        return h;
-    }
 };
 
 PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptions& options)
@@ -90,26 +70,11 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
     Impl& m = *impl_;
     m.path = model_path;
     m.options = options;
-    G2L_CHECK(options.threads >= 0, "PoseEstimator: threads must be >= 0, got ", options.threads);
-    G2L_CHECK(options.crop_points >= -1, "PoseEstimator: crop_points must be >= -1, got ",
-              options.crop_points);
-    G2L_CHECK(options.object_points == -1 || options.object_points >= 1,
-              "PoseEstimator: object_points must be -1 or >= 1, got ", options.object_points);
-    G2L_CHECK(std::isfinite(options.min_detection_score) && options.min_detection_score >= 0 &&
-                  options.min_detection_score <= 1,
-              "PoseEstimator: min_detection_score must be in [0, 1], got ",
-              options.min_detection_score);
-    G2L_CHECK(options.max_instances >= 1, "PoseEstimator: max_instances must be >= 1, got ",
-              options.max_instances);
-    G2L_CHECK(options.max_hypotheses >= 1, "PoseEstimator: max_hypotheses must be >= 1, got ",
-              options.max_hypotheses);
-    G2L_CHECK(std::isfinite(options.min_pose_score) && options.min_pose_score >= 0 &&
-                  options.min_pose_score <= 1,
-              "PoseEstimator: min_pose_score must be in [0, 1], got ", options.min_pose_score);
-    G2L_CHECK(options.refine == Refinement::none || options.refine == Refinement::icp ||
-                  options.refine == Refinement::turns || options.refine == Refinement::automatic,
-              "PoseEstimator: refine must be none, icp, turns or automatic, got ",
-              int(options.refine));
+    try {
+        options.check();
+    } catch (const std::exception& e) {
+        throw Error(std::string("PoseEstimator: ") + e.what());
+    }
     if (options.refine == Refinement::automatic)  // turns with meshes, none without
         m.options.refine = options.meshes.empty() ? Refinement::none : Refinement::turns;
     G2L_CHECK(m.options.refine == Refinement::none || !options.meshes.empty(),
@@ -135,13 +100,7 @@ PoseEstimator::PoseEstimator(const std::string& model_path, const EstimatorOptio
                   "(g2l_infer --models-info; in the library EstimatorOptions::models_info), or "
                   "re-export it with g2l_train --export");
     }
-    infer::PipelineOptions po;
-    po.crop_points = options.crop_points;
-    po.object_points = options.object_points;
-    po.refine = m.options.refine == Refinement::turns ? infer::Refine::turns
-                : m.options.refine == Refinement::icp ? infer::Refine::icp
-                                                      : infer::Refine::none;
-    m.pipeline = std::make_unique<infer::FramePipeline>(infer::PipelineModel::of(m.model), po);
+    m.pipeline = std::make_unique<infer::FramePipeline>(infer::PipelineModel::of(m.model), m.options);
     if (!options.meshes.empty()) {
         // The meshes of the model's objects found in the folder: the refinement and the
         // verification use them (an object without one keeps the networks' pose unverified:
@@ -314,9 +273,9 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
         }
         if (!o.ok() || !m.pipeline->mesh(o.obj_id)) continue;
         const auto t0 = std::chrono::steady_clock::now();
-        const infer::HypothesisOptions ho = m.hypothesis_options();
-        const geom::Verification v = m.pipeline->verify(depth, K, o, ho.verify);
-        set_check(v, ho.score_model.probability(v, boxes[i].score, false), &p);
+        const infer::HypothesisTuning& tune = m.pipeline->tuning();
+        const geom::Verification v = m.pipeline->verify(depth, K, o, tune.verify);
+        set_check(v, tune.score_model.probability(v, boxes[i].score, false), &p);
         const double ms = std::chrono::duration<double, std::milli>(
                               std::chrono::steady_clock::now() - t0).count();
         p.timings.refine_ms += ms;
@@ -373,8 +332,7 @@ std::string PoseEstimator::detector_input() const {
     return impl_->detector ? nn::to_string(impl_->detector->input()) : "";
 }
 
-std::vector<infer::Candidate> PoseEstimator::Impl::detections(const std::vector<ObjectBox>& boxes,
-                                                             const infer::HypothesisOptions& ho) {
+std::vector<infer::Candidate> PoseEstimator::Impl::detections(const std::vector<ObjectBox>& boxes) {
     std::vector<infer::Candidate> dets;
     for (const ObjectBox& b : boxes) {
         infer::Candidate c;
@@ -384,7 +342,7 @@ std::vector<infer::Candidate> PoseEstimator::Impl::detections(const std::vector<
         c.det_score = b.score;
         dets.push_back(c);
     }
-    return pipeline->candidates(dets, ho);
+    return pipeline->candidates(dets);
 }
 
 std::vector<ObjectPose> PoseEstimator::Impl::to_public(const std::vector<infer::Hypothesis>& hs) const {
@@ -421,8 +379,7 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f) {
     check_frame(f, "PoseEstimator::estimate");
     geom::Intrinsics K;
     const float* depth = m.begin_frame(f, &K);
-    const infer::HypothesisOptions ho = m.hypothesis_options();
-    m.pipeline->hypotheses(depth, K, m.detections(boxes, ho), ho, &m.hyps);
+    m.pipeline->hypotheses(depth, K, m.detections(boxes), &m.hyps);
     return m.to_public(m.hyps);
 }
 
@@ -460,13 +417,12 @@ std::vector<ObjectPose> PoseTracker::track(const FrameView& f) {
     PoseEstimator& est = *impl_->est;
     check_frame(f, "PoseTracker::track");
     PoseEstimator::Impl& m = *est.impl_;
-    const infer::HypothesisOptions ho = m.hypothesis_options();
     std::lock_guard<std::mutex> lock(m.mutex);
     geom::Intrinsics K;
     const float* depth = m.begin_frame(f, &K);
     // The detector only when the tracker asks.
-    auto detect = [&]() { return m.detections(m.detect(f), ho); };
-    impl_->tracker->step(depth, K, ho, detect, &m.hyps);
+    auto detect = [&]() { return m.detections(m.detect(f)); };
+    impl_->tracker->step(depth, K, detect, &m.hyps);
     return m.to_public(m.hyps);
 }
 

@@ -13,7 +13,7 @@ Tracker::Tracker(FramePipeline& pipeline, const TrackerOptions& opt) : pipe_(&pi
               "Tracker: min_track_score must be in [0, 1], got ", opt.min_track_score);
     G2L_CHECK(opt.lost_score >= 0 && opt.lost_score <= opt.min_track_score,
               "Tracker: lost_score must be in [0, min_track_score], got ", opt.lost_score);
-    G2L_CHECK(pipeline.refine() != Refine::none,
+    G2L_CHECK(pipeline.refine() != Refinement::none,
               "Tracker: the pipeline does not refine: tracking follows poses with the depth "
               "refinement against the objects' meshes");
 }
@@ -24,7 +24,7 @@ void Tracker::reset() {
     detected_ = false;
 }
 
-void Tracker::step(const float* depth, const geom::Intrinsics& K, const HypothesisOptions& opt,
+void Tracker::step(const float* depth, const geom::Intrinsics& K,
                    const std::function<std::vector<Candidate>()>& detect,
                    std::vector<Hypothesis>* out) {
     // 1. Follow every track. A confident pose that loses its object (no pose, or a score that
@@ -33,7 +33,7 @@ void Tracker::step(const float* depth, const geom::Intrinsics& K, const Hypothes
     std::vector<Hypothesis> seeds;
     bool lost = false, weak = false;
     for (const Hypothesis& t : tracks_) {
-        Hypothesis h = pipe_->follow(depth, K, t, opt, opt_.follow);
+        Hypothesis h = pipe_->follow(depth, K, t, opt_.follow);
         const bool confident = t.score >= opt_.min_track_score;
         if (confident && (!h.outcome.ok() || h.score < opt_.lost_score)) lost = true;
         weak = weak || (h.outcome.ok() && h.score < opt_.min_track_score);
@@ -62,7 +62,7 @@ void Tracker::step(const float* depth, const geom::Intrinsics& K, const Hypothes
         seeds = std::move(kept);
     }
     const std::vector<Candidate> cands = detected_ ? detect() : std::vector<Candidate>{};
-    pipe_->hypotheses(depth, K, cands, opt, out, &seeds);
+    pipe_->hypotheses(depth, K, cands, out, &seeds);
     // 3. Track ids: a followed pose keeps its id; a fresh pose that beat a followed one of the
     //    same instance (a duplicate), or lies where a dropped weak one lay, takes that id; any
     //    other fresh pose is a new instance.
@@ -72,7 +72,7 @@ void Tracker::step(const float* depth, const geom::Intrinsics& K, const Hypothes
             hs[size_t(h.rival)].track_id < 0)
             hs[size_t(h.rival)].track_id = h.track_id;
     for (const Hypothesis& w : dropped) {  // a fresh pose where a dropped one lay takes its id
-        const double near = opt.duplicate_frac * pipe_->model().diameter.at(w.cand.obj_id);
+        const double near = pipe_->tuning().duplicate_frac * pipe_->model().diameter.at(w.cand.obj_id);
         for (Hypothesis& h : hs)
             if (h.accepted() && h.track_id < 0 && h.cand.obj_id == w.cand.obj_id &&
                 (h.outcome.pose.t - w.outcome.pose.t).norm() < near) {

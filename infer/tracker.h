@@ -6,7 +6,7 @@
 // lost_score), and every `redetect_every` frames (to find objects that entered the view,
 // and better poses for the weak ones). On such a frame the
 // followed poses enter the hypotheses road ahead of the detections, so a detection of an object
-// already followed confidently is not posed again (HypothesisOptions::cover_score) and the
+// already followed confidently is not posed again (PipelineOptions::cover_score) and the
 // better of a followed and a fresh pose of one instance wins.
 //
 // Internal (not installed): the public face is g2l::PoseTracker (include/g2l/pose_estimator.h).
@@ -44,7 +44,8 @@ public:
     /// The next frame's hypotheses (as FramePipeline::hypotheses lists them: accepted first, by
     /// score; each with `tracked` and `track_id`). `detect` gives the frame's candidates (the
     /// detector, then FramePipeline::candidates); it is called only when the frame needs it.
-    void step(const float* depth_mm, const geom::Intrinsics& K, const HypothesisOptions& opt,
+    /// The pipeline's options (FramePipeline::options) decide the selection.
+    void step(const float* depth_mm, const geom::Intrinsics& K,
               const std::function<std::vector<Candidate>()>& detect, std::vector<Hypothesis>* out);
     /// Forgets every track: the next step runs the detector (a new sequence, a cut).
     void reset();

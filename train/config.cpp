@@ -86,7 +86,9 @@ void visit_config(IO& io, TrainConfig& c) {
     });
     io.object("sampling", [&](IO& s) {
         SamplingConfig& p = c.sampling;
-        s.choice("crop", p.crop, kCrops);
+        std::string crop = geom::to_string(p.crop);
+        s.choice("crop", crop, kCrops);
+        p.crop = geom::parse_crop(crop, "sampling.crop");  // choice() refused other names
         s.integer("points", p.points);
         s.integer("seg_points", p.seg_points);
         s.num("radius_scale", p.radius_scale);
@@ -383,9 +385,6 @@ void validate(const TrainConfig& c, const std::string& where) {
     check_sources(c, c.data.val, "val", where);
 
     const SamplingConfig& s = c.sampling;
-    G2L_CHECK(s.crop == "sphere" || s.crop == "frustum" || s.crop == "slab", where,
-              ": 'sampling.crop' must be one of ", list_str(kCrops, true), ", got \"", s.crop,
-              "\"");
     G2L_CHECK(s.seg_points > 0, where, ": 'sampling.seg_points' must be > 0, got ",
               s.seg_points);
     G2L_CHECK(s.points >= s.seg_points, where, ": 'sampling.points' = ", s.points,

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "data/scene.h"
+#include "geometry/crop.h"
 #include "train/source_types.h"
 
 namespace g2l::train {
@@ -46,7 +47,7 @@ struct DataConfig {
 
 /// How a sample is cut out of a depth frame (spec §6 and train/sample.h). Lengths in mm.
 struct SamplingConfig {
-    std::string crop = "sphere";      ///< "sphere" | "frustum" | "slab"
+    geom::CropKind crop = geom::CropKind::sphere;  ///< "sphere" | "frustum" | "slab" in JSON
     int points = 1500;                ///< points per crop (seg-net input)
     int seg_points = 1000;            ///< points resampled from the segmented object
     double radius_scale = 1.0;        ///< sphere radius (slab half-depth) = scale x diameter

@@ -108,7 +108,7 @@ void save_training_checkpoint(const std::string& path, const nn::G2LNet& net,
     meta["classes"] = ids;
     meta["keypoints"] = kps;
     if (!objects.empty()) meta["objects"] = objects_json(objects);
-    meta["sampling"] = {{"crop", cfg.sampling.crop}, {"radius_scale", cfg.sampling.radius_scale},
+    meta["sampling"] = {{"crop", geom::to_string(cfg.sampling.crop)}, {"radius_scale", cfg.sampling.radius_scale},
                         {"points", cfg.sampling.points}, {"seg_points", cfg.sampling.seg_points}};
     meta["resume"] = {{"epoch", st.epoch}, {"pos", st.pos}, {"global_step", st.global_step},
                       {"epoch_batches", st.epoch_batches}, {"epoch_loss", st.epoch_loss},

@@ -156,8 +156,6 @@ void augment_into(const SampleConfig& cfg, const geom::Points& pts, const std::v
 }  // namespace
 
 void validate(const SampleConfig& c, const std::string& where) {
-    G2L_CHECK(c.crop == "sphere" || c.crop == "frustum" || c.crop == "slab", where,
-              ": crop must be \"sphere\", \"frustum\" or \"slab\", got \"", c.crop, "\"");
     G2L_CHECK(c.points > 0, where, ": points must be > 0, got ", c.points);
     G2L_CHECK(c.min_points > 0, where, ": min_points must be > 0, got ", c.min_points);
     G2L_CHECK(std::isfinite(c.radius_scale) && c.radius_scale > 0, where,

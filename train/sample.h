@@ -15,6 +15,7 @@
 
 #include "core/rng.h"
 #include "data/dataset.h"
+#include "geometry/crop.h"
 #include "geometry/labels.h"
 #include "geometry/types.h"
 
@@ -25,7 +26,7 @@ struct SampleConfig {
     /// "sphere": |p - centre| < radius_scale * diameter (the paper);
     /// "frustum": every valid depth point of the (jittered) 2D box (Frustum-PointNets baseline);
     /// "slab": |z - centre_z| < radius_scale * diameter (the released code's chooselimt).
-    std::string crop = "sphere";
+    geom::CropKind crop = geom::CropKind::sphere;
     int points = 1500;              ///< points per sample (N)
     double radius_scale = 1.0;      ///< crop radius / half-depth in units of the model diameter
     double center_jitter_mm = 10;   ///< std-dev of the Gaussian added to the crop centre, per axis

@@ -383,14 +383,11 @@ public:
             int n = 0;
             for (const auto& v : rd_.val) {
                 if (!v.frames) continue;
-                EvalOptions eo;
-                eo.crop = infer::parse_crop(cfg_.sampling.crop, "sampling.crop");
-                eo.radius_scale = cfg_.sampling.radius_scale;
-                eo.crop_points = cfg_.sampling.points;
-                eo.max_object_points = cfg_.sampling.seg_points;
+                EvalOptions eo;  // the networks alone, as trained: no refinement
+                eo.pipeline.refine = Refinement::none;
                 eo.max_instances = cfg_.train.max_val_samples;
                 eo.min_visib_fract = v.cfg->min_visib_fract;
-                const EvalReport r = evaluate_gt_boxes(net_, *v.frames, rd_.class_of, rd_.keypoints, eo);
+                const EvalReport r = evaluate_gt_boxes(validation_model(), *v.frames, eo);
                 record["val"].push_back(json::parse(report_json(r)));
                 // Model selection by what users see: the ADD accuracy modulo the geometric
                 // symmetries (the YCB AUC's 10 cm threshold rewards random rotations).
@@ -415,6 +412,19 @@ public:
     }
 
 private:
+    // The network in training as the pipeline sees a trained model: the crop, its radius and
+    // point counts of the config.
+    infer::PipelineModel validation_model() {
+        infer::PipelineModel pm;
+        pm.net = &net_;
+        pm.class_of = rd_.class_of;
+        pm.keypoints = rd_.keypoints;
+        pm.crop = cfg_.sampling.crop;
+        pm.radius_scale = cfg_.sampling.radius_scale;
+        pm.points = cfg_.sampling.points;
+        pm.seg_points = cfg_.sampling.seg_points;
+        return pm;
+    }
     static nn::AdamOptions adam_options(const TrainConfig& cfg) {
         nn::AdamOptions ao;
         ao.lr = cfg.optim.lr;

@@ -91,7 +91,9 @@ LoadedModel load_model(const std::string& path) {
             }
         } else if (k == "sampling") {
             JsonReader s(v, src, at);
-            s.text("crop", m.crop);
+            std::string crop = geom::to_string(m.crop);
+            s.text("crop", crop);
+            m.crop = geom::parse_crop(crop, "checkpoint '" + path + "': sampling.crop");
             s.num("radius_scale", m.radius_scale);
             // Added 2026-12-01; older files fed the whole crop (0 = no sampling).
             m.points = 0;
@@ -135,8 +137,6 @@ LoadedModel load_model(const std::string& path) {
     for (const auto& [id, o] : m.objects)
         G2L_CHECK(std::isfinite(o.diameter) && o.diameter > 0, "checkpoint '", path,
                   "': object ", id, " has diameter ", o.diameter);
-    G2L_CHECK(m.crop == "sphere" || m.crop == "slab" || m.crop == "frustum", "checkpoint '", path,
-              "': unknown crop '", m.crop, "'");
     G2L_CHECK(std::isfinite(m.radius_scale) && m.radius_scale > 0 && m.points >= 0 &&
                   m.seg_points >= 1,
               "checkpoint '", path, "': bad sampling settings (radius_scale ", m.radius_scale,

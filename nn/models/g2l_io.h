@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "geometry/crop.h"
 #include "nn/models/g2l_net.h"
 
 namespace g2l::nn {
@@ -39,7 +40,7 @@ struct LoadedModel {
     std::vector<std::vector<Eigen::Vector3f>> keypoints;  ///< class index -> model keypoints (mm)
     std::map<int, ModelObjectInfo> objects;  ///< obj_id -> diameter etc. (empty in files
                                              ///< written before 2026-12-02)
-    std::string crop = "sphere";    ///< crop the network was trained with
+    geom::CropKind crop = geom::CropKind::sphere;  ///< crop the network was trained with
     double radius_scale = 1.0;
     int points = 0;                 ///< seg-net input points per crop (0 = the whole crop)
     int seg_points = 2000;          ///< object points fed to the T-net and the rotation blocks

@@ -21,8 +21,8 @@ TEST_CASE("crop_indices keeps exactly the points inside the sphere / slab", "[ge
         0, 0, 1100,    // on the slab boundary: excluded
         0, 0, 901;     // inside both
     const Eigen::Vector3d c0(0, 0, 1000);
-    CHECK(crop_indices("sphere", p, c0, 100) == std::vector<int>{0, 1, 5});
-    CHECK(crop_indices("slab", p, c0, 100) == std::vector<int>{0, 1, 2, 3, 5});
+    CHECK(crop_indices(CropKind::sphere, p, c0, 100) == std::vector<int>{0, 1, 5});
+    CHECK(crop_indices(CropKind::slab, p, c0, 100) == std::vector<int>{0, 1, 2, 3, 5});
 
     // Brute force on a large random cloud.
     std::mt19937 rng(4);
@@ -34,22 +34,23 @@ TEST_CASE("crop_indices keeps exactly the points inside the sphere / slab", "[ge
         if ((r.row(i).cast<double>() - c.transpose()).norm() < 150) sphere.push_back(i);
         if (std::abs(double(r(i, 2)) - 1100) < 150) slab.push_back(i);
     }
-    CHECK(crop_indices("sphere", r, c, 150) == sphere);
-    CHECK(crop_indices("slab", r, c, 150) == slab);
+    CHECK(crop_indices(CropKind::sphere, r, c, 150) == sphere);
+    CHECK(crop_indices(CropKind::slab, r, c, 150) == slab);
     CHECK(!sphere.empty());
     CHECK(sphere.size() < slab.size());
-    const Points kept = crop_points("sphere", r, c, 150);
+    const Points kept = crop_points(CropKind::sphere, r, c, 150);
     REQUIRE(kept.rows() == int64_t(sphere.size()));
     CHECK(kept.row(0) == r.row(sphere.front()));
     CHECK(kept.row(kept.rows() - 1) == r.row(sphere.back()));
 
-    const auto all = crop_indices("frustum", p, c, 0);  // no radius needed
+    const auto all = crop_indices(CropKind::frustum, p, c, 0);  // no radius needed
     REQUIRE(all.size() == 6);
     CHECK(all.back() == 5);
-    REQUIRE_THROWS_WITH(crop_indices("cube", p, c, 1), Contains("\"cube\""));
-    REQUIRE_THROWS_WITH(crop_indices("sphere", p, c, 0), Contains("radius"));
-    REQUIRE_THROWS_WITH(crop_indices("slab", p, c, -1), Contains("radius") && Contains("-1"));
-    REQUIRE_THROWS_WITH(crop_indices("sphere", p, Eigen::Vector3d(NAN, 0, 0), 5), Contains("not finite"));
+    REQUIRE_THROWS_WITH(parse_crop("cube", "sampling.crop"), Contains("'cube'") && Contains("sampling.crop"));
+    CHECK(parse_crop(to_string(CropKind::slab), "x") == CropKind::slab);
+    REQUIRE_THROWS_WITH(crop_indices(CropKind::sphere, p, c, 0), Contains("radius"));
+    REQUIRE_THROWS_WITH(crop_indices(CropKind::slab, p, c, -1), Contains("radius") && Contains("-1"));
+    REQUIRE_THROWS_WITH(crop_indices(CropKind::sphere, p, Eigen::Vector3d(NAN, 0, 0), 5), Contains("not finite"));
 }
 
 TEST_CASE("clip_box and box_centre: boxes partly or wholly outside, depth holes", "[geometry]") {

@@ -57,7 +57,7 @@ Outputs run_all() {
     for (auto& x : Q) x = g(rng);
     o.rotations.resize(B * 9);
     kabsch_batched(P.data(), Q.data(), B, K, o.rotations.data());
-    o.crop = crop_indices("sphere", cam, Eigen::Vector3d(0, 0, 500), 40.0);
+    o.crop = crop_indices(CropKind::sphere, cam, Eigen::Vector3d(0, 0, 500), 40.0);
     return o;
 }
 

@@ -47,8 +47,9 @@ TEST_CASE("the shipped LM-O pose model on unseen LINEMOD-like renders, pinned",
 
     nn::LoadedModel m = nn::load_model(std::string(G2L_SOURCE_DIR) + "/models/lm_pose.g2l");
     REQUIRE(m.class_of.size() == 8);
-    infer::PipelineOptions none_opt, turns_opt;
-    turns_opt.refine = infer::Refine::turns;
+    PipelineOptions none_opt, turns_opt;
+    none_opt.refine = Refinement::none;
+    turns_opt.refine = Refinement::turns;
     infer::FramePipeline nets(infer::PipelineModel::of(m), none_opt);
     infer::FramePipeline refined(infer::PipelineModel::of(m), turns_opt);
     std::map<int, geom::Points> pts;

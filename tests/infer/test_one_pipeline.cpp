@@ -27,14 +27,10 @@ TEST_CASE("g2l_eval's evaluation and PoseEstimator give bitwise the same poses o
          {std::pair<const char*, g2l::Refinement>{"none", g2l::Refinement::none},
           {"turns", g2l::Refinement::turns}}) {
         INFO("refinement " << refine);
-        g2l::eval::EvalOptions eo;
-        eo.crop = g2l::infer::parse_crop(m.crop, "crop");
-        eo.radius_scale = m.radius_scale;
-        eo.crop_points = m.points;
-        eo.max_object_points = m.seg_points;
-        eo.refine = g2l::infer::parse_refine(refine, "refine");
+        g2l::eval::EvalOptions eo;  // the pipeline's options: the library's own type
+        eo.pipeline.refine = g2l::infer::parse_refine(refine, "refine");
         std::vector<g2l::eval::InstanceResult> inst;
-        g2l::eval::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, &inst);
+        g2l::eval::evaluate_instances(g2l::infer::PipelineModel::of(m), ds, eo, &inst);
         REQUIRE(inst.size() == 4);
 
         g2l::EstimatorOptions o;
@@ -74,16 +70,57 @@ TEST_CASE("g2l_eval's evaluation and PoseEstimator give bitwise the same poses o
 }
 
 TEST_CASE("FramePipeline: refinement and crop names are parsed once, bad ones named", "[infer]") {
-    using namespace g2l::infer;
-    CHECK(parse_refine("turns", "x") == Refine::turns);
-    CHECK(parse_refine("icp", "x") == Refine::icp);
-    CHECK(parse_refine("none", "x") == Refine::none);
-    CHECK_THROWS_WITH(parse_refine("Turns", "--refine"),
-                      Catch::Matchers::Contains("--refine must be none, icp or turns, got 'Turns'"));
-    CHECK(parse_crop("frustum", "x") == CropKind::frustum);
-    CHECK_THROWS_WITH(parse_crop("cube", "crop"),
+    using g2l::Refinement;
+    using g2l::geom::CropKind;
+    CHECK(g2l::infer::parse_refine("turns", "x") == Refinement::turns);
+    CHECK(g2l::infer::parse_refine("icp", "x") == Refinement::icp);
+    CHECK(g2l::infer::parse_refine("none", "x") == Refinement::none);
+    CHECK(g2l::infer::parse_refine("automatic", "x") == Refinement::automatic);
+    CHECK_THROWS_WITH(g2l::infer::parse_refine("Turns", "--refine"),
+                      Catch::Matchers::Contains("--refine must be none, icp, turns or automatic, got 'Turns'"));
+    CHECK(g2l::geom::parse_crop("frustum", "x") == CropKind::frustum);
+    CHECK_THROWS_WITH(g2l::geom::parse_crop("cube", "crop"),
                       Catch::Matchers::Contains("crop must be sphere, frustum or slab, got 'cube'"));
-    for (Refine r : {Refine::none, Refine::icp, Refine::turns}) CHECK(parse_refine(to_string(r), "x") == r);
+    for (Refinement r : {Refinement::none, Refinement::icp, Refinement::turns, Refinement::automatic})
+        CHECK(g2l::infer::parse_refine(g2l::to_string(r), "x") == r);
+}
+
+TEST_CASE("PipelineOptions: one type for every road, checked where it is defined", "[infer]") {
+    g2l::PipelineOptions o;
+    CHECK_NOTHROW(o.check());
+    auto bad = [](auto edit, const char* what) {
+        g2l::PipelineOptions x;
+        edit(x);
+        CHECK_THROWS_WITH(x.check(), Catch::Matchers::Contains(what));
+    };
+    bad([](g2l::PipelineOptions& x) { x.crop_points = -2; }, "crop_points must be >= -1");
+    bad([](g2l::PipelineOptions& x) { x.object_points = 0; }, "object_points must be -1");
+    bad([](g2l::PipelineOptions& x) { x.min_detection_score = 1.5; }, "min_detection_score must be in [0, 1], got 1.5");
+    bad([](g2l::PipelineOptions& x) { x.max_instances = 0; }, "max_instances must be >= 1, got 0");
+    bad([](g2l::PipelineOptions& x) { x.max_hypotheses = 0; }, "max_hypotheses must be >= 1");
+    bad([](g2l::PipelineOptions& x) { x.alike_frac = std::nan(""); }, "alike_frac must be in [0, 1)");
+    bad([](g2l::PipelineOptions& x) { x.min_pose_score = -0.1; }, "min_pose_score must be in [0, 1]");
+    bad([](g2l::PipelineOptions& x) { x.cover_score = -1; }, "cover_score must be >= 0");
+    bad([](g2l::PipelineOptions& x) { x.refine = g2l::Refinement(17); }, "refine must be none, icp, turns or automatic, got 17");
+    // The pipeline resolves the defaults to the model's (and `automatic` to `turns`), and
+    // refuses a change of refinement once its meshes are prepared.
+    g2l::nn::LoadedModel m = g2l::nn::load_model(kModel);
+    g2l::infer::FramePipeline pipe(g2l::infer::PipelineModel::of(m), o);
+    CHECK(pipe.options().crop_points == m.points);
+    CHECK(pipe.options().object_points == m.seg_points);
+    CHECK(pipe.refine() == g2l::Refinement::turns);
+    g2l::PipelineOptions none = o;
+    none.refine = g2l::Refinement::none;
+    CHECK_THROWS_WITH(pipe.set_options(none), Catch::Matchers::Contains("cannot change from turns to none"));
+    g2l::PipelineOptions fewer = o;
+    fewer.max_hypotheses = 2;
+    pipe.set_options(fewer);
+    CHECK(pipe.options().max_hypotheses == 2);
+    CHECK(pipe.options().crop_points == m.points);
+    fewer.max_instances = 0;
+    CHECK_THROWS_WITH(pipe.set_options(fewer), Catch::Matchers::Contains("max_instances"));
+    CHECK_THROWS_WITH(g2l::infer::FramePipeline(g2l::infer::PipelineModel::of(m), fewer),
+                      Catch::Matchers::Contains("max_instances must be >= 1"));
 }
 
 TEST_CASE("PoseEstimator: a box's pose does not depend on the other boxes of the frame",
@@ -121,8 +158,8 @@ TEST_CASE("FramePipeline: candidates spend the budget on each object's best peak
           "[infer]") {
     using namespace g2l::infer;
     g2l::nn::LoadedModel m = g2l::nn::load_model(kModel);
-    PipelineOptions po;
-    po.refine = Refine::turns;  // the library's default with meshes
+    g2l::PipelineOptions po;  // the defaults: turns (the library's with meshes), 3 per object,
+                              // 12 in all, detections >= 0.1, like within 15 %
     FramePipeline pipe(PipelineModel::of(m), po);
     const std::string root = g2l::testing::fixture_dir() + "/ycbv_mini";
     const g2l::data::Dataset ds = g2l::data::open_bop(root, "train_real", {});
@@ -147,8 +184,8 @@ TEST_CASE("FramePipeline: candidates spend the budget on each object's best peak
     const std::vector<Candidate> dets = {det(8, 0.9, 0),  det(8, 0.5, 60), det(8, 0.4, 120),
                                          det(8, 0.3, 180), det(14, 0.2, 240), det(999, 0.95, 0),
                                          det(14, 0.05, 300)};
-    HypothesisOptions ho;  // 3 per object, 12 in all, detections >= 0.1, like within 15 %
-    const auto c = pipe.candidates(dets, ho);
+    g2l::PipelineOptions ho = po;
+    const auto c = pipe.candidates(dets);
     // Best own peaks (8 @ 0.9, 14 @ 0.2), the other own peaks (8 @ 0.5, 0.4; 0.3 is over the
     // cap of 3), then object 9 borrowing object 8's peaks (0.8 x their score; 3 at most).
     std::vector<std::pair<int, double>> got;
@@ -163,14 +200,16 @@ TEST_CASE("FramePipeline: candidates spend the budget on each object's best peak
     }
     CHECK(c[4].det_obj_id == 8);  // borrowed
     ho.alike_frac = 0;             // off: no borrowed peak
-    CHECK(pipe.candidates(dets, ho).size() == 4);
+    pipe.set_options(ho);
+    CHECK(pipe.candidates(dets).size() == 4);
     ho.max_hypotheses = 2;         // the budget: the best own peaks only
-    const auto two = pipe.candidates(dets, ho);
+    pipe.set_options(ho);
+    const auto two = pipe.candidates(dets);
     REQUIRE(two.size() == 2);
     CHECK(two[0].obj_id == 8);
     CHECK(two[1].obj_id == 14);
-    ho.max_per_object = 0;
-    CHECK_THROWS_WITH(pipe.candidates(dets, ho), Catch::Matchers::Contains("max_per_object"));
+    ho.max_instances = 0;
+    CHECK_THROWS_WITH(pipe.set_options(ho), Catch::Matchers::Contains("max_instances"));
 
     // Two detections of one instance (the same GT box, one shifted by 4 px): two poses at the
     // same place, the lower-scored one a duplicate (or an overlap) of the other, naming it.
@@ -188,9 +227,10 @@ TEST_CASE("FramePipeline: candidates spend the budget on each object's best peak
     b.box.x += 4;
     b.det_score = 0.6;
     std::vector<Hypothesis> hs;
-    HypothesisOptions all_posed;
+    g2l::PipelineOptions all_posed = po;
     all_posed.cover_score = 2.0;  // off: both are posed, the lower score loses
-    pipe.hypotheses(depth.data(), K, {b, a}, all_posed, &hs);
+    pipe.set_options(all_posed);
+    pipe.hypotheses(depth.data(), K, {b, a}, &hs);
     REQUIRE(hs.size() == 2);
     CHECK(hs[0].accepted());
     CHECK(hs[0].verified);
@@ -201,7 +241,8 @@ TEST_CASE("FramePipeline: candidates spend the budget on each object's best peak
     CHECK(hs[1].outcome.ok());
     // With the default cover: the second look at the same object (its box centre on depth the
     // first, confident pose explains) is not posed at all.
-    pipe.hypotheses(depth.data(), K, {a, b}, HypothesisOptions{}, &hs);
+    pipe.set_options(po);
+    pipe.hypotheses(depth.data(), K, {a, b}, &hs);
     REQUIRE(hs.size() == 2);
     CHECK(hs[0].accepted());
     CHECK(hs[1].verdict == Verdict::covered);
@@ -209,9 +250,10 @@ TEST_CASE("FramePipeline: candidates spend the budget on each object's best peak
     CHECK_FALSE(hs[1].outcome.ok());
     CHECK(std::string(to_string(Verdict::covered)) == "covered");
     // A threshold above every score rejects both as low-scored; nothing is accepted.
-    HypothesisOptions strict;
-    strict.min_score = 1.0;
-    pipe.hypotheses(depth.data(), K, {a, b}, strict, &hs);
+    g2l::PipelineOptions strict = po;
+    strict.min_pose_score = 1.0;
+    pipe.set_options(strict);
+    pipe.hypotheses(depth.data(), K, {a, b}, &hs);
     for (const auto& x : hs) CHECK(x.verdict == Verdict::low_score);
     CHECK(std::string(to_string(Verdict::overlap)) == "overlap");
 }

@@ -25,8 +25,9 @@ TEST_CASE("refinement on the real YCB-V frames: never a worse fit than the netwo
     const data::Dataset ds = data::open_bop(*shared + "/ycbv", "train_real", {});
     REQUIRE(ds.frames().size() == 60);
     nn::LoadedModel m = nn::load_model(std::string(G2L_SOURCE_DIR) + "/models/ycbv_sim2real.g2l");
-    infer::PipelineOptions none_opt, turns_opt;
-    turns_opt.refine = infer::Refine::turns;
+    PipelineOptions none_opt, turns_opt;
+    none_opt.refine = Refinement::none;
+    turns_opt.refine = Refinement::turns;
     infer::FramePipeline plain(infer::PipelineModel::of(m), none_opt);
     infer::FramePipeline refined(infer::PipelineModel::of(m), turns_opt);
     for (const auto& [id, om] : ds.models()) refined.add_mesh(id, ds.load_model_mesh(id), om.info);

@@ -122,7 +122,7 @@ TEST_CASE("config: defaults are the paper's values", "[config]") {
     CHECK_FALSE(s.models_eval);
     CHECK(s.min_visib_fract == 0.1);
     CHECK(s.max_frames == 0);
-    CHECK(c.sampling.crop == "sphere");
+    CHECK(c.sampling.crop == geom::CropKind::sphere);
     CHECK(c.sampling.points == 1500);
     CHECK(c.sampling.seg_points == 1000);
     CHECK(c.sampling.radius_scale == 1.0);
@@ -214,7 +214,7 @@ TEST_CASE("config: every key round-trips through config_to_json", "[config]") {
     CHECK_FALSE(sc.noise.enabled);
     CHECK(sc.seed == 5);
     CHECK(c.data.val[0].min_visib_fract == 0);
-    CHECK(c.sampling.crop == "slab");
+    CHECK(c.sampling.crop == geom::CropKind::slab);
     CHECK(c.sampling.points == 900);
     CHECK(c.sampling.seg_points == 600);
     CHECK(c.sampling.radius_scale == 1.5);
@@ -461,7 +461,7 @@ TEST_CASE("config: --set overrides apply before validation", "[config]") {
                                        "data.train.1.scene.noise.sigma_a_mm=2.5"});
     CHECK(c.optim.lr == 0.01);
     CHECK(c.data.train[1].frames == 10);
-    CHECK(c.sampling.crop == "frustum");  // not JSON -> a string
+    CHECK(c.sampling.crop == geom::CropKind::frustum);  // not JSON -> the name
     CHECK(c.augment.shift_mm == std::array<double, 3>{{0, 0, 7}});
     CHECK(c.data.object_ids == std::vector<int>{8, 14, 21, 30});
     CHECK(c.model.evf);
@@ -613,7 +613,7 @@ TEST_CASE("config: every shipped config parses", "[config]") {
         for (const auto& d : diff) paths.insert(d["path"].get<std::string>());
         CHECK(paths == std::set<std::string>{"/name", "/run_dir", pointer});
     }
-    CHECK(cfg.at("ablation_frustum").sampling.crop == "frustum");
+    CHECK(cfg.at("ablation_frustum").sampling.crop == geom::CropKind::frustum);
     CHECK_FALSE(cfg.at("ablation_sphere").model.evf);
     CHECK_FALSE(cfg.at("ablation_sphere").model.rre);
     CHECK(cfg.at("ablation_fps12").model.keypoints == "fps12");
@@ -632,7 +632,7 @@ TEST_CASE("config: every shipped config parses", "[config]") {
     CHECK(cfg.at("lm_ablation").data.object_ids == std::vector<int>{1, 8});
     const TrainConfig& p = cfg.at("lm_paper");
     CHECK(p.data.object_ids == std::vector<int>{1});
-    CHECK(p.sampling.crop == "sphere");
+    CHECK(p.sampling.crop == geom::CropKind::sphere);
     CHECK(p.sampling.points == 1500);
     CHECK(p.model.width == 1.0);
     CHECK(p.schedule.kind == "step");

@@ -100,14 +100,10 @@ TEST_CASE("evaluate_instances: detector boxes take the hypotheses road and are m
     const std::string root = testing::fixture_dir() + "/ycbv_mini";
     const data::Dataset ds = data::open_bop(root, "train_real", {});
     nn::LoadedModel m = nn::load_model(std::string(G2L_SOURCE_DIR) + "/models/ycbv_sim2real.g2l");
-    EvalOptions eo;
-    eo.crop = g2l::infer::parse_crop(m.crop, "crop");
-    eo.radius_scale = m.radius_scale;
-    eo.crop_points = m.points;
-    eo.max_object_points = m.seg_points;
-    eo.refine = g2l::infer::Refine::turns;
+    EvalOptions eo;  // the pipeline's defaults: the model's point counts, turns
+    const g2l::infer::PipelineModel pm = g2l::infer::PipelineModel::of(m);
     std::vector<InstanceResult> gt, det, some;
-    const EvalReport rg = evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, &gt);
+    const EvalReport rg = evaluate_instances(pm, ds, eo, &gt);
     REQUIRE(gt.size() == 4);
     CHECK(rg.average.pose_precision == -1);  // GT boxes report no precision
     std::vector<data::Detection> dets;
@@ -127,7 +123,7 @@ TEST_CASE("evaluate_instances: detector boxes take the hypotheses road and are m
     }
     eo.detections = &dets;
     std::vector<HypothesisRecord> hyps;
-    const EvalReport rd = evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, &det, &hyps);
+    const EvalReport rd = evaluate_instances(pm, ds, eo, &det, &hyps);
     std::vector<const InstanceResult*> matched, fps;
     for (const auto& r : det) (r.false_positive ? fps : matched).push_back(&r);
     REQUIRE(matched.size() == gt.size());
@@ -178,7 +174,7 @@ TEST_CASE("evaluate_instances: detector boxes take the hypotheses road and are m
     for (const auto& d : dets)
         if (d.image_id == 1) one.push_back(d);
     eo.detections = &one;
-    const EvalReport rs = evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, &some);
+    const EvalReport rs = evaluate_instances(pm, ds, eo, &some);
     int misses = 0, counted = 0;
     for (const auto& r : some) {
         counted += !r.false_positive;
@@ -191,7 +187,7 @@ TEST_CASE("evaluate_instances: detector boxes take the hypotheses road and are m
     std::vector<data::Detection> anon = {dets[0]};
     anon[0].scene_id = -1;
     eo.detections = &anon;
-    REQUIRE_THROWS_WITH(evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, nullptr),
+    REQUIRE_THROWS_WITH(evaluate_instances(pm, ds, eo, nullptr),
                         Catch::Contains("no scene_id / image_id"));
 }
 

@@ -308,7 +308,7 @@ TEST_CASE("samples: sphere, slab and frustum crops keep exactly the right box po
     int w = 0, h = 0;
     const std::vector<float> depth = ds.load_depth_mm(f, &w, &h);
     const DepthView view{depth.data(), w, h, f.K};
-    for (const std::string crop : {"sphere", "slab", "frustum"}) {
+    for (const geom::CropKind crop : {geom::CropKind::sphere, geom::CropKind::slab, geom::CropKind::frustum}) {
         for (const int n : {200000, 1000}) {  // with repeats (all candidates kept) / subset
             SampleConfig cfg;
             cfg.crop = crop;
@@ -324,15 +324,15 @@ TEST_CASE("samples: sphere, slab and frustum crops keep exactly the right box po
             std::set<int> expected;
             for (Eigen::Index i = 0; i < box_pts.rows(); ++i) {
                 const Eigen::Vector3f p = box_pts.row(i).transpose();
-                const bool keep = crop == "sphere" ? (p - s.centre).norm() < radius
-                                  : crop == "slab" ? std::abs(p.z() - s.centre.z()) < radius
+                const bool keep = crop == geom::CropKind::sphere ? (p - s.centre).norm() < radius
+                                  : crop == geom::CropKind::slab ? std::abs(p.z() - s.centre.z()) < radius
                                                    : true;
                 if (keep) expected.insert(pixel_of(p.cast<double>(), f.K));
             }
-            INFO(crop << " N=" << n << ": " << expected.size() << " expected of "
+            INFO(geom::to_string(crop) << " N=" << n << ": " << expected.size() << " expected of "
                       << box_pts.rows() << " box points");
             REQUIRE(s.num_candidates == static_cast<int>(expected.size()));
-            if (crop == "frustum") REQUIRE(s.num_candidates == box_pts.rows());
+            if (crop == geom::CropKind::frustum) REQUIRE(s.num_candidates == box_pts.rows());
             else REQUIRE(s.num_candidates < box_pts.rows());
             std::set<int> got;
             for (int i = 0; i < n; ++i) {
@@ -380,8 +380,6 @@ TEST_CASE("samples: bad config values and inputs throw naming the value", "[samp
     };
     bad([](SampleConfig& c) { c.points = 0; }, "points must be > 0, got 0");
     bad([](SampleConfig& c) { c.points = -5; }, "got -5");
-    bad([](SampleConfig& c) { c.crop = "cube"; },
-        "crop must be \"sphere\", \"frustum\" or \"slab\", got \"cube\"");
     bad([](SampleConfig& c) { c.radius_scale = std::nan(""); }, "radius_scale must be finite");
     bad([](SampleConfig& c) { c.min_points = 0; }, "min_points must be > 0, got 0");
     bad([](SampleConfig& c) { c.box_jitter_frac = 0.7; },

@@ -232,7 +232,8 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
     o.obj_ids = {8, 14};
     const auto ds = data::open_bop(testing::fixture_dir() + "/ycbv_mini", "train_real", o);
     eval::EvalOptions eo;
-    const auto r = eval::evaluate_gt_boxes(*m.net, ds, m.class_of, m.keypoints, eo);
+    eo.pipeline.refine = Refinement::none;  // the networks' poses, as validation scores them
+    const auto r = eval::evaluate_gt_boxes(infer::PipelineModel::of(m), ds, eo);
     REQUIRE(r.instances == 4);
     REQUIRE(r.objects.size() == 2);
     for (const auto& s : r.objects) {
@@ -272,11 +273,11 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
     // points (oracle seg) it is 1; with the GT translation too the translation error is 0 and
     // the errors are the rotation's alone.
     std::vector<eval::InstanceResult> plain, oracle;
-    eval::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo, &plain);
+    eval::evaluate_instances(infer::PipelineModel::of(m), ds, eo, &plain);
     eval::EvalOptions eo2 = eo;
     eo2.oracle_seg = true;
     eo2.oracle_t = true;
-    const auto ro = eval::evaluate_instances(*m.net, ds, m.class_of, m.keypoints, eo2, &oracle);
+    const auto ro = eval::evaluate_instances(infer::PipelineModel::of(m), ds, eo2, &oracle);
     CHECK(ro.oracle == "seg+t");
     CHECK_THAT(eval::report_markdown(ro), Catch::Contains("Oracle inputs (seg+t)"));
     REQUIRE(plain.size() == 4);
@@ -308,7 +309,7 @@ TEST_CASE("g2l_eval: a checkpoint alone rebuilds the model, evaluation on real f
         REQUIRE(sde.at(name).nbytes() == t.nbytes());
         CHECK(std::memcmp(static_cast<const Tensor&>(sde.at(name)).data(), static_cast<const Tensor&>(t).data(), t.nbytes()) == 0);
     }
-    const auto r2 = eval::evaluate_gt_boxes(*e.net, ds, e.class_of, e.keypoints, eo);
+    const auto r2 = eval::evaluate_gt_boxes(infer::PipelineModel::of(e), ds, eo);
     CHECK(r2.average.auc_adds == r.average.auc_adds);
     // A training run cannot resume from an export, and bad paths name the file.
     CHECK_THROWS_WITH(train::export_model(cut, dir + "/x.g2l"), Catch::Contains("cut.g2l"));

@@ -160,13 +160,49 @@ enum class Refinement {
 /// "none", "icp", "turns", "automatic".
 G2L_API const char* to_string(Refinement refine);
 
-/// Options of a PoseEstimator; the defaults reproduce the settings the model was trained with.
-struct EstimatorOptions {
-    int threads = 0;          ///< OpenMP threads for the networks (0 = leave as they are)
+/// "none", "icp", "turns" or "automatic" as a Refinement; anything else throws
+/// std::runtime_error naming `what` (a flag or key) and the value.
+G2L_API Refinement parse_refinement(const std::string& text, const std::string& what);
+
+/// How a frame's boxes become poses: the one options type of the pipeline, whichever road runs
+/// it (the library's PoseEstimator, g2l_infer, g2l_eval and training's validation all embed
+/// it; nothing is translated). The defaults reproduce the settings the model was trained with.
+struct G2L_API PipelineOptions {
     int crop_points = -1;     ///< points of the crop the segmentation sees (-1: the model's
                               ///< `sampling.points`; 0: the whole crop)
     int object_points = -1;   ///< object points fed to the translation and rotation networks
                               ///< (-1: the model's `sampling.seg_points`)
+    /// Depth refinement: by default (`automatic`) every pose whose object has a mesh is refined
+    /// (`turns`); `none` keeps the networks' poses even then.
+    Refinement refine = Refinement::automatic;
+    /// Detections scoring less are dropped. Low, because every hypothesis is verified against
+    /// the depth: a weak peak of a partly hidden object is worth trying.
+    double min_detection_score = 0.1;
+    /// The best peaks kept per object, so several instances of one object each get a pose (bin
+    /// picking).
+    int max_instances = 3;
+    /// The detections tried per frame (each posed, refined and verified), best detection
+    /// scores first; bounds the frame's time.
+    int max_hypotheses = 12;
+    /// A peak of one object is also tried as each object whose mesh box's sorted sides all lie
+    /// within this fraction of its own (a depth-only detector confuses such objects; needs the
+    /// meshes); 0 = off.
+    double alike_frac = 0.15;
+    /// Poses whose verified score (ObjectPose::score) is below this are rejected ("low score").
+    double min_pose_score = 0.0;
+    /// Candidates are posed in order; one whose peak (else its box centre) lies on depth that an
+    /// earlier verified pose scoring at least this explains is not posed at all ("covered"):
+    /// second looks at a found object are rarely right and cost a full pose. Chosen on held-out
+    /// renders (docs/results.md): 0.7 keeps every figure of posing all and saves ~30 % of the
+    /// time; 0.5 saved ~40 % and lost 1.4 points. Above 1 = off.
+    double cover_score = 0.7;
+    /// Throws std::runtime_error naming the first option out of its range and its value.
+    void check() const;
+};
+
+/// Options of a PoseEstimator: the pipeline's, plus where its files are.
+struct G2L_API EstimatorOptions : PipelineOptions {
+    int threads = 0;          ///< OpenMP threads for the networks (0 = leave as they are)
     /// A BOP models_info.json: the object diameters for model files that do not store them
     /// (older checkpoints), and the boxes and diameters the refinement uses for the meshes it
     /// lists (without it they are measured on the mesh) — give the dataset's file to get
@@ -175,22 +211,6 @@ struct EstimatorOptions {
     /// A 2D detector export (g2l_train with a "task": "detector" config writes
     /// <run_dir>/detector.g2l): enables detect() and estimate(frame) without boxes.
     std::string detector;
-    /// detect() / estimate(frame): peaks scoring less are dropped. Low, because estimate(frame)
-    /// verifies every hypothesis against the depth: a weak peak of a partly hidden object is
-    /// worth trying (HypothesisOptions::min_det_score, what g2l_eval --boxes det uses).
-    double min_detection_score = 0.1;
-    /// detect() / estimate(frame): the best peaks kept per object, so several instances of one
-    /// object each get a pose (bin picking).
-    int max_instances = 3;
-    /// estimate(frame): the detections tried per frame (each posed, refined and verified),
-    /// best detection scores first; bounds the frame's time.
-    int max_hypotheses = 12;
-    /// estimate(frame): a peak is also tried as the objects whose mesh box has like sides (a
-    /// depth-only detector confuses them; needs `meshes`).
-    bool alike_hypotheses = true;
-    /// Poses whose verified score (ObjectPose::score) is below this are rejected: dropped by
-    /// estimate(frame), marked rejected_low_score by estimate(frame, boxes).
-    double min_pose_score = 0.0;
     /// estimate(frame) also returns the rejected hypotheses (after the accepted poses, with the
     /// reason in ObjectPose::status), e.g. to draw them.
     bool keep_rejected = false;
@@ -198,13 +218,13 @@ struct EstimatorOptions {
     /// class-probability maps are averaged (two network passes; on the real LM-O images mean
     /// recall 45.9 -> 47.7, docs/results.md)
     bool detector_mirror = false;
-    /// Depth refinement: by default (`automatic`) the poses are refined (`turns`) when `meshes`
-    /// is given; `none` keeps the networks' poses even then.
-    Refinement refine = Refinement::automatic;
     /// The folder of the objects' meshes, named as BOP names them (obj_000005.ply; mm): needed
-    /// by `refine`. The constructor loads the mesh of every object of the model found there
-    /// (at least one); an object without a mesh keeps the networks' pose (ObjectPose::refined).
+    /// by `refine` and the verification. The constructor loads the mesh of every object of the
+    /// model found there (at least one); an object without a mesh keeps the networks' pose
+    /// (ObjectPose::refined). Without it, `automatic` refinement is `none`.
     std::string meshes;
+    /// PipelineOptions::check(), and threads >= 0.
+    void check() const;
 };
 
 /// G2L-Net's pose pipeline for the objects of one trained model.

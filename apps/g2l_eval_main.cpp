@@ -29,71 +29,53 @@ namespace {
 
 using json = nlohmann::json;
 
-// --bop-csv, --instances and --vis for the instances of one evaluated set.
-void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::eval::InstanceResult>& inst,
-                   const std::vector<g2l::eval::HypothesisRecord>& hyps,
-                   std::ofstream* csv, std::ofstream* jsonl, const std::string& vis_dir,
-                   const std::string& set_name) {
-    // BOP: `time` is the wall time of the whole image, the same on all of its rows.
-    std::map<std::pair<std::string, int>, double> image_ms;
-    for (const auto& r : inst) image_ms[{r.scene, r.image_id}] += r.ms;
-    char buf[1024];
-    for (const auto& r : inst) {
-        if (csv && r.found) {
-            const auto& R = r.est.R;
-            const auto& t = r.est.t;
-            std::snprintf(buf, sizeof buf,
-                          "%d,%d,%d,%.6f,%.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g,%.6f %.6f %.6f,%.6f\n",
-                          std::atoi(r.scene.c_str()), r.image_id, r.obj_id, r.score, R(0, 0), R(0, 1),
-                          R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2), t[0], t[1],
-                          t[2], image_ms[{r.scene, r.image_id}] / 1000.0);
-            *csv << buf;
-        }
-        if (jsonl) {
-            auto pose_json = [](const g2l::geom::Pose& p) {
-                json R = json::array();
-                for (int a = 0; a < 3; ++a)
-                    for (int b = 0; b < 3; ++b) R.push_back(p.R(a, b));
-                return json{{"R", R}, {"t", {p.t[0], p.t[1], p.t[2]}}};
-            };
-            json j = {{"set", set_name}, {"scene", r.scene}, {"image_id", r.image_id},
-                      {"inst", r.inst_index}, {"obj_id", r.obj_id}, {"status", r.status},
-                      {"found", r.found}, {"score", r.score},
-                      {"box", {r.box.x, r.box.y, r.box.w, r.box.h}}, {"ms", r.ms}};
-            if (!r.false_positive) j["gt"] = pose_json(r.gt);
-            if (r.reported) {  // the hypotheses road
-                j["right"] = r.right;
-                j["false_positive"] = r.false_positive;
-                j["det_score"] = r.det_score;
-                if (r.verify_score >= 0)
-                    j["check"] = {{"explained", r.explained}, {"violation", r.violation},
-                                  {"seg_agree", r.seg_agree}};
-            }
-            if (r.found) j["est"] = pose_json(r.est);
-            if (r.found && !r.false_positive) {
-                j["add_mm"] = r.add_mm;
-                j["adds_mm"] = r.adds_mm;
-                j["addsym_mm"] = r.addsym_mm;
-                if (r.refine_hyp >= 0) {
-                    j["refine_hypothesis"] = r.refine_hyp;
-                    j["refine_cluster"] = r.refine_cluster;
-                    j["fit_mm"] = r.fit_mm;
-                    j["gt_fit_mm"] = r.gt_fit_mm;
-                }
-                j["rot_err_deg"] = r.rot_deg;
-                j["rot_err_sym_deg"] = r.rot_sym_deg;
-                j["trans_err_mm"] = r.trans_mm;
-            }
-            if (r.seg_iou >= 0) j["seg_iou"] = r.seg_iou;
-            if (r.det_iou >= 0) j["det_iou"] = r.det_iou;
-            *jsonl << j.dump() << "\n";
-        }
+// One --instances line: ids, status, box, estimate, ground truth, errors.
+json instance_json(const g2l::eval::InstanceResult& r, const std::string& set_name) {
+    auto pose_json = [](const g2l::geom::Pose& p) {
+        json R = json::array();
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) R.push_back(p.R(a, b));
+        return json{{"R", R}, {"t", {p.t[0], p.t[1], p.t[2]}}};
+    };
+    json j = {{"set", set_name}, {"scene", r.scene}, {"image_id", r.image_id},
+              {"inst", r.inst_index}, {"obj_id", r.obj_id}, {"status", r.status},
+              {"found", r.found}, {"score", r.score},
+              {"box", {r.box.x, r.box.y, r.box.w, r.box.h}}, {"ms", r.ms}};
+    if (!r.false_positive) j["gt"] = pose_json(r.gt);
+    if (r.reported) {  // the hypotheses road
+        j["right"] = r.right;
+        j["false_positive"] = r.false_positive;
+        j["det_score"] = r.det_score;
+        if (r.verify_score >= 0)
+            j["check"] = {{"explained", r.explained}, {"violation", r.violation},
+                          {"seg_agree", r.seg_agree}};
     }
-    if (vis_dir.empty()) return;
+    if (r.found) j["est"] = pose_json(r.est);
+    if (r.found && !r.false_positive) {
+        j["add_mm"] = r.add_mm;
+        j["adds_mm"] = r.adds_mm;
+        j["addsym_mm"] = r.addsym_mm;
+        if (r.refine_hyp >= 0) {
+            j["refine_hypothesis"] = r.refine_hyp;
+            j["refine_cluster"] = r.refine_cluster;
+            j["fit_mm"] = r.fit_mm;
+            j["gt_fit_mm"] = r.gt_fit_mm;
+        }
+        j["rot_err_deg"] = r.rot_deg;
+        j["rot_err_sym_deg"] = r.rot_sym_deg;
+        j["trans_err_mm"] = r.trans_mm;
+    }
+    if (r.seg_iou >= 0) j["seg_iou"] = r.seg_iou;
+    if (r.det_iou >= 0) j["det_iou"] = r.det_iou;
+    return j;
+}
+
+// --vis: one image per frame: ground truth green, estimate blue (the paper's Fig. 7). With the
+// hypotheses road, each reported pose carries its score and the rejected hypotheses are drawn
+// in red with theirs and the reason.
+void draw_frames(const g2l::data::Dataset& ds, const std::vector<g2l::eval::InstanceResult>& inst,
+                 const std::vector<g2l::eval::HypothesisRecord>& hyps, const std::string& vis_dir) {
     namespace fs = std::filesystem;
-    // One image per frame: ground truth green, estimate blue (the paper's Fig. 7).
-    // With the hypotheses road, each reported pose carries its score and the rejected
-    // hypotheses are drawn in red with theirs and the reason.
     std::map<std::pair<std::string, int>, std::vector<const g2l::eval::InstanceResult*>> by_frame;
     for (const auto& r : inst) by_frame[{r.scene, r.image_id}].push_back(&r);
     std::map<std::pair<std::string, int>, std::vector<const g2l::eval::HypothesisRecord*>> hyp_frame;
@@ -136,8 +118,14 @@ void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::eval::In
         }
         g2l::data::save_png((fs::path(vis_dir) / (f.scene + "_" + std::to_string(f.image_id) + ".png")).string(), im);
     }
-    // Accuracy against the threshold (fraction of the diameter, 0-20%) per object: ADD-S (red),
-    // ADD modulo the geometric symmetries (blue), ADD (grey).
+}
+
+// --vis: accuracy against the threshold (fraction of the diameter, 0-20%) per object: ADD-S
+// (red), ADD modulo the geometric symmetries (blue), ADD (grey).
+void draw_accuracy_curves(const g2l::data::Dataset& ds,
+                          const std::vector<g2l::eval::InstanceResult>& inst,
+                          const std::string& vis_dir) {
+    namespace fs = std::filesystem;
     std::map<int, std::vector<const g2l::eval::InstanceResult*>> by_obj;
     for (const auto& r : inst)
         if (!r.false_positive) by_obj[r.obj_id].push_back(&r);
@@ -158,6 +146,35 @@ void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::eval::In
         g2l::data::save_png((fs::path(vis_dir) / ("accuracy_obj_" + std::to_string(id) + ".png")).string(),
                             g2l::data::plot_curves(curves, {{{220, 40, 40}}, {{40, 90, 255}}, {{150, 150, 150}}}, 0.2));
     }
+}
+
+// --bop-csv, --instances and --vis for the instances of one evaluated set.
+void write_outputs(const g2l::data::Dataset& ds, const std::vector<g2l::eval::InstanceResult>& inst,
+                   const std::vector<g2l::eval::HypothesisRecord>& hyps,
+                   std::ofstream* csv, std::ofstream* jsonl, const std::string& vis_dir,
+                   const std::string& set_name) {
+    // BOP: `time` is the wall time of the whole image, the same on all of its rows.
+    std::map<std::pair<std::string, int>, double> image_ms;
+    for (const auto& r : inst) image_ms[{r.scene, r.image_id}] += r.ms;
+    char buf[1024];
+    for (const auto& r : inst) {
+        if (csv && r.found) {
+            const auto& R = r.est.R;
+            const auto& t = r.est.t;
+            std::snprintf(buf, sizeof buf,
+                          "%d,%d,%d,%.6f,%.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g,%.6f %.6f %.6f,%.6f\n",
+                          std::atoi(r.scene.c_str()), r.image_id, r.obj_id, r.score, R(0, 0), R(0, 1),
+                          R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2), t[0], t[1],
+                          t[2], image_ms[{r.scene, r.image_id}] / 1000.0);
+            *csv << buf;
+        }
+        if (jsonl) {
+            *jsonl << instance_json(r, set_name).dump() << "\n";
+        }
+    }
+    if (vis_dir.empty()) return;
+    draw_frames(ds, inst, hyps, vis_dir);
+    draw_accuracy_curves(ds, inst, vis_dir);
 }
 
 /// Everything the command line asks for.
@@ -407,9 +424,9 @@ std::vector<EvalSet> open_sets(const Job& j, const g2l::train::LoadedModel& m) {
     return sets_to_eval;
 }
 
-/// The evaluation options of one set: the checkpoint's crop and point counts unless overridden.
-g2l::eval::EvalOptions eval_options(const Job& j, const g2l::train::LoadedModel& m,
-                                    const EvalSet& s) {
+/// The evaluation options of one set: the pipeline's as the command line gives them (the
+/// checkpoint brings its crop and point counts), and what evaluation adds.
+g2l::eval::EvalOptions eval_options(const Job& j, const EvalSet& s) {
     g2l::eval::EvalOptions eo;
     eo.pipeline = j.pipeline;
     eo.max_instances = j.max_instances;
@@ -536,7 +553,7 @@ int run_eval(const Job& j) {
     std::string json_all = "[";
     for (size_t i = 0; i < sets.size(); ++i) {
         const EvalSet& s = sets[i];
-        g2l::eval::EvalOptions eo = eval_options(j, m, s);
+        g2l::eval::EvalOptions eo = eval_options(j, s);
         if (j.boxes == "file") eo.detections = &detections;
         if (!j.poses_path.empty()) eo.poses = &given;
         std::vector<g2l::data::Detection> det_boxes;

@@ -13,7 +13,6 @@
 #include <iostream>
 #include <map>
 #include <memory>
-#include <regex>
 #include <sstream>
 
 #include "core/atomic_file.h"
@@ -38,17 +37,12 @@ struct LoadedModel {
     int obj_id;
     std::unique_ptr<geom::Mesh> mesh;
     std::string symmetries;  // declared in the models_info.json beside the mesh (data/scene.h)
+    std::string name;        // the file's name without extension
 };
 
-// obj_id from a BOP-style file name ("obj_000012.ply" -> 12), or -1.
-int id_from_name(const std::string& file) {
-    static const std::regex re(R"(obj_0*([0-9]+)\.(ply|obj)$)", std::regex::icase);
-    std::smatch m;
-    return std::regex_search(file, m, re) ? std::stoi(m[1].str()) : -1;
-}
-
 // --models takes a folder (every obj_*.ply / *.ply in it) or a list of mesh files. Files without
-// an obj_NNNNNN name get ids 1, 2, ... in the order given.
+// an obj_NNNNNN name get the smallest free ids in the order given (data::mesh_file_ids),
+// printed and written to <out>/obj_names.json.
 std::vector<LoadedModel> load_models(const std::vector<std::string>& args) {
     std::vector<std::string> files;
     for (const std::string& a : args) {
@@ -69,9 +63,9 @@ std::vector<LoadedModel> load_models(const std::vector<std::string>& args) {
         }
     }
     std::vector<LoadedModel> out;
+    const std::vector<int> ids = data::mesh_file_ids(files);
     for (size_t i = 0; i < files.size(); ++i) {
-        const int by_name = id_from_name(fs::path(files[i]).filename().string());
-        const int id = by_name > 0 ? by_name : int(i) + 1;
+        const int id = ids[i];
         // The symmetries the models_info.json beside the mesh declares travel with it.
         const std::string info = (fs::path(files[i]).parent_path() / "models_info.json").string();
         auto mesh = std::make_unique<geom::Mesh>(geom::load_mesh(files[i]));
@@ -79,7 +73,8 @@ std::vector<LoadedModel> load_models(const std::vector<std::string>& args) {
         std::map<int, geom::ModelInfo> declared;
         if (fs::exists(info)) declared = geom::load_models_info_json(info);
         geom::check_mesh_units(*mesh, declared.count(id) ? &declared.at(id) : nullptr, "'" + info + "'");
-        out.push_back({id, std::move(mesh), data::read_symmetries(info, id)});
+        out.push_back({id, std::move(mesh), data::read_symmetries(info, id),
+                       fs::path(files[i]).stem().string()});
     }
     return out;
 }
@@ -119,7 +114,7 @@ int run_bench(std::vector<LoadedModel> models, int frames, int threads, uint64_t
     if (models.empty()) {  // 4 icospheres of 5120 triangles + the support plane (128)
         for (int k = 0; k < 4; ++k) {
             models.push_back({k + 1, std::make_unique<geom::Mesh>(
-                                         data::make_icosphere(40.0 + 15.0 * k, 4)), ""});
+                                         data::make_icosphere(40.0 + 15.0 * k, 4)), "", "sphere"});
         }
     }
     data::SceneConfig cfg;
@@ -238,6 +233,20 @@ int main(int argc, char** argv) {
 
         const fs::path root(out_dir);
         data::write_bop_models((root / "models").string(), sm);
+        // Meshes not named as BOP names them: their ids and names, said and kept.
+        std::map<int, std::string> names;
+        bool renamed = false;
+        for (const LoadedModel& m : models) {
+            names[m.obj_id] = m.name;
+            char bop[32];
+            std::snprintf(bop, sizeof bop, "obj_%06d", m.obj_id);
+            renamed |= m.name != bop;
+        }
+        if (renamed) {
+            for (const auto& [id, name] : names)
+                std::fprintf(stderr, "g2l_render: object %d = %s\n", id, name.c_str());
+            data::write_obj_names(root.string(), names);
+        }
         char scene_name[16];
         std::snprintf(scene_name, sizeof scene_name, "%06d", scene_id);
         const fs::path scene_dir = root / split / scene_name;

@@ -13,6 +13,7 @@
 #include "train/detector_train.h"
 #include "train/distributed.h"
 #include "train/model_io.h"
+#include "train/own_objects.h"
 #include "train/trainer.h"
 
 namespace {
@@ -89,6 +90,8 @@ int run_export(const std::vector<std::string>& export_args,
 /// Everything the command line asks for.
 struct Job {
     std::string config, resume;
+    std::string objects, out, camera;  // --objects: your own meshes to RUN
+    double minutes = 30;
     std::vector<std::string> sets, export_args, average_args;
     int64_t max_steps = 0;
     bool quiet = false, force = false, verbose = false;
@@ -117,6 +120,19 @@ void add_options(CLI::App& app, Job& j) {
                    "and exit; with detector exports (detector.g2l), a detector export whose "
                    "weights and BatchNorm statistics are their mean")
         ->expected(3, 1000);
+    app.add_option("--objects", j.objects,
+                   "DIR: your own objects, one command: the meshes of DIR (.ply / .obj, any "
+                   "names, mm or metres) become RUN/models (BOP, with diameters, symmetries and "
+                   "obj_names.json), then a depth detector and a pose model train on renders of "
+                   "them within --minutes and export RUN/detector.g2l and RUN/pose.g2l "
+                   "(docs/own_objects.md)");
+    app.add_option("--out", j.out, "RUN: the folder --objects writes");
+    app.add_option("--minutes", j.minutes, "--objects: the whole budget, both trainings "
+                                           "(default 30)")
+        ->check(CLI::Range(0.1, 100000.0));
+    app.add_option("--camera", j.camera,
+                   "--objects: your camera (a BOP camera.json with width and height), which the "
+                   "detector's renders use (default: YCB-Video's, 640 x 480, f 1067 px)");
     app.add_flag("--verbose", j.verbose,
                  "error messages with their source location (also G2L_VERBOSE=1)");
 }
@@ -134,6 +150,29 @@ int interrupted(int64_t steps, const std::string& run_dir) {
                                         : "terminated (SIGTERM)",
                      (long long)steps, run_dir.c_str());
     return 128 + sig;
+}
+
+/// --objects: the meshes to a detector and a pose model (train/own_objects.h).
+int train_own_objects(const Job& j) {
+    std::signal(SIGINT, on_signal);
+    std::signal(SIGTERM, on_signal);
+    g2l::train::OwnObjectsOptions o;
+    o.objects_dir = j.objects;
+    o.out_dir = j.out;
+    o.minutes = j.minutes;
+    o.camera = j.camera;
+    o.max_steps = j.max_steps;
+    o.force = j.force;
+    o.progress = !j.quiet;
+    o.stop_flag = &g_stop;
+    const g2l::train::OwnObjectsSummary s = g2l::train::run_own_objects(o);
+    if (s.interrupted) return interrupted(s.interrupted_steps, s.interrupted_run);
+    if (!j.quiet)
+        std::printf("g2l_train: %zu objects in %.1f min: %s, %s (meshes %s); poses with\n"
+                    "  g2l_infer --model %s --detector %s --meshes %s --depth D.png --camera C.json\n",
+                    s.objects.size(), s.minutes, s.detector.c_str(), s.pose.c_str(),
+                    s.models.c_str(), s.pose.c_str(), s.detector.c_str(), s.models.c_str());
+    return 0;
 }
 
 /// The training the config asks for (a pose model, or with "task": "detector" the detector),
@@ -192,6 +231,22 @@ int main(int argc, char** argv) {
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_train"); rc >= 0) return rc;
     if (!j.export_args.empty() || !j.average_args.empty())
         return run_export(j.export_args, j.average_args, j.verbose);
+    if (!j.objects.empty() || !j.out.empty()) {
+        if (j.objects.empty() || j.out.empty() || !j.config.empty() || !j.resume.empty()) {
+            std::fprintf(stderr, "g2l_train: --objects DIR needs --out RUN, and takes no --config "
+                                 "or --resume (see g2l_train --help)\n");
+            return 2;
+        }
+        try {
+            return train_own_objects(j);
+        } catch (const std::exception& e) {
+            return g2l::cli::report("g2l_train", e, j.verbose);
+        }
+    }
+    if (!j.camera.empty()) {
+        std::fprintf(stderr, "g2l_train: --camera is an option of --objects\n");
+        return 2;
+    }
     if (j.config.empty() && j.resume.empty()) {
         std::fprintf(stderr, "g2l_train: give --config FILE (or --resume RUN_DIR)\n%s",
                      app.help().c_str());

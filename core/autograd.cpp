@@ -9,6 +9,8 @@
 namespace g2l::autograd {
 
 namespace {
+// Per thread (like PyTorch's grad mode): a NoGradGuard on one thread does not stop another
+// thread from recording its graph.
 thread_local bool t_grad_enabled = true;
 }
 
@@ -24,10 +26,13 @@ bool needs_grad(const std::vector<Tensor>& inputs) {
 }
 
 Tensor record(const char* op, Tensor out, std::vector<Tensor> inputs, BackwardFn fn) {
+    // No node at all when nothing upstream is trainable, so inference pays no closure allocation.
     if (!needs_grad(inputs)) return out;
     auto node = std::make_shared<Node>();
     node->op = op;
     node->versions.reserve(inputs.size());
+    // Snapshot of the inputs' storage versions; run_backward compares them to catch an input that
+    // was modified in place between forward and backward.
     for (const Tensor& t : inputs) node->versions.push_back(t.defined() ? t.version() : 0);
     node->inputs = std::move(inputs);
     node->fn = std::move(fn);
@@ -53,6 +58,8 @@ void Grads::add(size_t i, const Tensor& dx) {
     if (!slots_[i].defined()) {
         slots_[i] = dx;
     } else {
+        // The first gradient is kept by reference and may alias a tensor the closure still uses
+        // (often dout itself), so the sum goes into a fresh copy instead of into that buffer.
         Tensor sum = slots_[i].clone();
         accumulate(sum, dx);
         slots_[i] = sum;
@@ -89,6 +96,9 @@ struct Pending {
 };
 
 void add_pending(Pending& p, const Tensor& g) {
+    // First contribution: borrow it without copying (most tensors have a single consumer). It may
+    // alias another node's gradient, so a second contribution first clones it; `owned` makes that
+    // clone happen once, and later contributions add in place.
     if (!p.grad.defined()) {
         p.grad = g;
         p.owned = false;
@@ -102,6 +112,8 @@ void add_pending(Pending& p, const Tensor& g) {
 }
 
 void add_to_leaf(TensorImpl* leaf, const Tensor& g) {
+    // A leaf's .grad outlives this backward and later backward passes add into it in place, so it
+    // must own its buffer rather than alias a temporary of this pass.
     if (!leaf->grad) {
         leaf->grad = g.clone().impl_ptr();
     } else {
@@ -158,11 +170,14 @@ void run_backward(const Tensor& root, const Tensor& seed_in, bool retain_graph) 
         add_to_leaf(root.impl(), seed);  // backward on a leaf: its gradient is the seed
         return;
     }
+    // Reverse post-order: every consumer of a tensor runs before the tensor's own node, so its
+    // pending gradient is complete by the time we reach it.
     for (auto it = order.rbegin(); it != order.rend(); ++it) {
         TensorImpl* t = it->get();
         auto found = pending.find(t);
         if (found == pending.end()) continue;  // no gradient flows into this tensor
         const Tensor dout = found->second.grad;
+        // Drop the entry now so each intermediate gradient is freed as soon as it is consumed.
         pending.erase(found);
         Node& node = *t->grad_fn;
         for (size_t i = 0; i < node.inputs.size(); ++i) {
@@ -173,6 +188,7 @@ void run_backward(const Tensor& root, const Tensor& seed_in, bool retain_graph) 
         }
         Grads grads(node.op, node.inputs);
         node.fn(dout, grads);
+        // A closure may fill slots for inputs that need no gradient; those are dropped here.
         for (size_t i = 0; i < node.inputs.size(); ++i) {
             const Tensor& g = grads.slots()[i];
             if (!g.defined() || !grads.needs(i)) continue;
@@ -182,6 +198,8 @@ void run_backward(const Tensor& root, const Tensor& seed_in, bool retain_graph) 
             else
                 add_to_leaf(in, g);
         }
+        // Releasing the closure and inputs frees the saved activations; `released` makes a second
+        // backward through this node throw instead of silently producing no gradient.
         if (!retain_graph) {
             node.fn = nullptr;
             node.inputs.clear();

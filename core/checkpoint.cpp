@@ -34,6 +34,8 @@ constexpr uint64_t kTail = 8 + 8;
 constexpr uint64_t kFnvBasis = 0xcbf29ce484222325ull;
 uint64_t fnv1a(const void* data, size_t n, uint64_t h) {
     const auto* p = static_cast<const unsigned char*>(data);
+    // 0x100000001b3 is the 64-bit FNV prime. The checksum guards against corruption (truncated
+    // copies, flipped bits), not tampering, so a simple dependency-free hash is enough.
     for (size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 0x100000001b3ull;
     return h;
 }
@@ -63,6 +65,9 @@ std::string build_header(std::vector<Entry>& entries, const std::string& meta) {
     h += meta;
     put<uint32_t>(h, uint32_t(entries.size()));
     uint64_t size = h.size();
+    // Each record: name length u32, name, dtype u8, ndim u8, dims i64[ndim], offset u64,
+    // nbytes u64. Records carry absolute data offsets, so the header's total size must be known
+    // before the first record can be written.
     for (const Entry& e : entries) size += 4 + e.name.size() + 1 + 1 + 8 * e.t.dim() + 8 + 8;
     uint64_t offset = align_up(size);
     for (Entry& e : entries) {
@@ -91,6 +96,7 @@ std::vector<Entry> collect(const std::string& path,
         G2L_CHECK(t.defined(), "save_checkpoint '", path, "': tensor '", name, "' is undefined");
         G2L_CHECK(t.dim() <= kCheckpointMaxDims, "save_checkpoint '", path, "': tensor '", name,
                   "' has ", t.dim(), " dims (at most ", kCheckpointMaxDims, ")");
+        // Bytes are written straight from host memory, so device tensors are copied to the CPU.
         entries.push_back({name, t.to(Device::cpu()), 0});
     }
     return entries;
@@ -101,6 +107,7 @@ std::vector<Entry> collect(const std::string& path,
 void save_checkpoint(const std::string& path,
                      const std::vector<std::pair<std::string, Tensor>>& tensors,
                      const std::string& meta_json) {
+    // Validated before anything is opened, so bad metadata never leaves a file behind.
     G2L_CHECK(nlohmann::json::accept(meta_json), "save_checkpoint '", path,
               "': metadata is not valid JSON (use \"{}\" for none): '",
               meta_json.substr(0, 80), "'");
@@ -108,9 +115,12 @@ void save_checkpoint(const std::string& path,
     const std::string header = build_header(entries, meta_json);
 
     AtomicFile f(path);
+    // The checksum covers every byte before the tail (header, padding, data), which is exactly the
+    // range load_checkpoint hashes.
     uint64_t h = fnv1a(header.data(), header.size(), kFnvBasis);
     f.write(header.data(), header.size());
     uint64_t pos = header.size();
+    // Padding is written as zeros (not left unspecified) so equal inputs give byte-identical files.
     const std::string zeros(kCheckpointAlign, '\0');
     for (const Entry& e : entries) {
         const size_t pad = size_t(e.offset - pos);  // < kCheckpointAlign
@@ -137,6 +147,7 @@ struct Cursor {
     uint64_t pos = 0;
 
     void need(uint64_t n, const char* what) const {
+        // Written as a subtraction (pos <= size always holds) so a huge corrupt n cannot overflow.
         G2L_CHECK(n <= buf.size() - pos, "checkpoint '", path, "' is truncated: it ends at byte ",
                   buf.size(), " inside the header (reading ", what, " at byte ", pos, ")");
     }
@@ -169,6 +180,8 @@ std::string read_file(const std::string& path) {
 }
 
 void check_magic_version(const std::string& path, const std::string& buf) {
+    // Compare only the bytes that exist: a short foreign file is reported as "not a checkpoint"
+    // before the size check can call it truncated.
     const size_t k = std::min<size_t>(buf.size(), 4);
     G2L_CHECK(std::memcmp(buf.data(), kMagic, k) == 0, "'", path,
               "' is not a g2l checkpoint (bad magic: expected 'G2LW' at byte 0)");
@@ -211,6 +224,7 @@ Record read_record(Cursor& c, uint32_t index) {
         const int64_t s = c.get<int64_t>("a dim");
         G2L_CHECK(s >= 0, "checkpoint '", path, "': tensor '", r.name, "' has negative dim ", s);
         r.shape.push_back(s);
+        // Once a dim is 0 the tensor is empty whatever follows; later dims skip the overflow check.
         if (s == 0) zero = true;
         else if (!zero) {
             G2L_CHECK(numel <= limit / uint64_t(s), "checkpoint '", path, "': tensor '", r.name,
@@ -234,6 +248,8 @@ Record read_record(Cursor& c, uint32_t index) {
 /// the file is exactly as long as the header implies.
 void check_layout(const std::string& path, std::vector<Record> recs, uint64_t header_end,
                   uint64_t file_size) {
+    // recs is a copy: sorting by offset lets one pass check overlaps without trusting the writer's
+    // order, and leaves the caller's record order (the file's order) untouched.
     std::sort(recs.begin(), recs.end(),
               [](const Record& a, const Record& b) { return a.offset < b.offset; });
     uint64_t end = header_end;
@@ -261,6 +277,7 @@ Checkpoint load_checkpoint(const std::string& path) {
     const uint64_t size = buf.size();
     // Checksum first, when the end marker is in place: any flipped byte is reported as
     // corruption rather than as whatever field it happened to damage.
+    // Safe to read the last 8 bytes: check_magic_version guaranteed size >= kFixedHead + kTail.
     const bool has_end = std::memcmp(buf.data() + size - 8, kEndMagic, 8) == 0;
     if (has_end) {
         uint64_t stored;
@@ -270,6 +287,7 @@ Checkpoint load_checkpoint(const std::string& path) {
                   "(stored ", std::hex, stored, ", computed ", actual, ")");
     }
 
+    // Start after magic (4) and version (4), which check_magic_version already read.
     Cursor c{path, buf, 8};
     Checkpoint ck;
     const uint64_t meta_len = c.get<uint64_t>("the metadata length");
@@ -283,10 +301,13 @@ Checkpoint load_checkpoint(const std::string& path) {
                   "': duplicate tensor name '", recs.back().name, "'");
     }
     check_layout(path, recs, c.pos, size);
+    // Checked after check_layout so a truncated file gets the more precise "truncated" message
+    // naming the tensor that runs past the end.
     G2L_CHECK(has_end, "checkpoint '", path, "' is corrupt: end marker 'G2LWEND' missing");
     G2L_CHECK(nlohmann::json::accept(ck.meta_json), "checkpoint '", path,
               "': metadata is not valid JSON");
     for (const Record& r : recs) {
+        // Copied out of `buf` into allocator-owned (aligned) storage; `buf` is freed on return.
         Tensor t = Tensor::empty(r.shape, r.dtype);
         if (r.nbytes > 0) std::memcpy(t.data(), buf.data() + r.offset, size_t(r.nbytes));
         ck.tensors.emplace(r.name, t);

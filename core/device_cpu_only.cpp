@@ -15,6 +15,8 @@ namespace {
 
 int device_count() { return 0; }
 void* malloc_device(size_t, int) { no_cuda("cuda::malloc_device"); }
+// Called from Storage's destructor, so it must not throw; nothing can reach it anyway because
+// malloc_device() always throws in this build.
 void free_device(void*) noexcept {}
 void copy_host_to_device(void*, const void*, size_t) { no_cuda("cuda::copy_host_to_device"); }
 void copy_device_to_host(void*, const void*, size_t) { no_cuda("cuda::copy_device_to_host"); }

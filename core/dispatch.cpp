@@ -6,6 +6,7 @@ namespace g2l {
 void require_same(const char* op, std::initializer_list<const Tensor*> ts) {
     const Tensor* first = nullptr;
     for (const Tensor* t : ts) {
+        // Optional inputs (e.g. linear's bias) arrive undefined and take no part in the check.
         if (!t || !t->defined()) continue;
         if (!first) { first = t; continue; }
         G2L_CHECK(t->dtype() == first->dtype() && t->device() == first->device(), op,

@@ -12,6 +12,7 @@ size_t dtype_size(DType t) {
         case DType::F64: return 8;
         case DType::I32: return 4;
     }
+    // Only reachable with an out-of-range enum value (a bad cast from an integer).
     G2L_CHECK(false, "dtype_size: unknown dtype ", int(t));
 }
 
@@ -21,6 +22,7 @@ const char* dtype_name(DType t) {
         case DType::F64: return "f64";
         case DType::I32: return "i32";
     }
+    // No throw here: dtype_name is used while building error messages.
     return "?";
 }
 
@@ -35,7 +37,9 @@ Device parse_device(const std::string& text) {
         try {
             size_t used = 0;
             const int i = std::stoi(text.substr(5), &used);
+            // `used` must cover the whole suffix, so "cuda:1x" is rejected, not read as cuda:1.
             if (used == text.size() - 5 && i >= 0) return Device::cuda(i);
+        // stoi throws on non-digits and overflow; fall through to the one error message below.
         } catch (const std::exception&) {
         }
     }

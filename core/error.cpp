@@ -12,6 +12,8 @@ void fail(const char* file, int line, const char* func, const char* cond, const 
                             "/data/", "/tests/"}) {
         if (const char* p = std::strstr(file, key)) { short_file = p + 1; break; }
     }
+    // The caller's message comes first (what went wrong, with values); the failed condition and
+    // location follow in brackets for whoever debugs it.
     throw Error(cat(msg, " [", cond, " failed at ", short_file, ":", line, " in ", func, "]"));
 }
 

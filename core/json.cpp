@@ -19,6 +19,8 @@ J parse_strict(const std::string& text, const std::string& source) {
     std::vector<std::set<std::string>> keys;
     std::vector<std::string> path;
     std::string duplicate;
+    // nlohmann keeps the last value of a repeated key without a word; a config with a key given
+    // twice is almost always an editing mistake, so the parser callback records duplicates.
     const typename J::parser_callback_t cb = [&](int /*depth*/, typename J::parse_event_t ev,
                                                  J& parsed) {
         using E = typename J::parse_event_t;
@@ -28,8 +30,10 @@ J parse_strict(const std::string& text, const std::string& source) {
             if (!keys.empty()) keys.pop_back();
         } else if (ev == E::key && !keys.empty()) {
             const std::string k = parsed.template get<std::string>();
+            // path[d] is the current key at object depth d (arrays add no level): "a.b.c" paths.
             path.resize(keys.size());
             path.back() = k;
+            // Only the first duplicate is kept; it is reported after parsing, so syntax errors win.
             if (!keys.back().insert(k).second && duplicate.empty()) {
                 for (size_t i = 0; i < path.size(); ++i) duplicate += (i ? "." : "") + path[i];
             }
@@ -38,6 +42,7 @@ J parse_strict(const std::string& text, const std::string& source) {
     };
     J j;
     try {
+        // Strict JSON: a comment is a syntax error here, not skipped.
         j = J::parse(text, cb, /*allow_exceptions=*/true, /*ignore_comments=*/false);
     } catch (const nlohmann::json::parse_error& e) {
         std::string what = e.what();

@@ -17,6 +17,9 @@ uint64_t splitmix64(uint64_t& x) {
 }  // namespace
 
 void Rng::reseed(uint64_t seed) {
+    // The xoshiro authors' recommended seeding: one 64-bit seed expands into 256 well-mixed state
+    // bits, so nearby seeds (0, 1, 2, ...) give unrelated streams and the all-zero state, which
+    // xoshiro can never leave, does not arise in practice.
     for (auto& v : s_) v = splitmix64(seed);
 }
 
@@ -32,6 +35,7 @@ uint64_t Rng::below(uint64_t n) {
 
 double Rng::normal() {
     double u1 = uniform();
+    // uniform() can return exactly 0, and log(0) would make the sample infinite.
     while (u1 <= 0.0) u1 = uniform();
     const double u2 = uniform();
     return std::sqrt(-2.0 * std::log(u1)) * std::cos(6.283185307179586 * u2);

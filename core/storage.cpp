@@ -37,6 +37,7 @@ class BlockCache {
 public:
     BlockCache() {
 #ifdef G2L_ASAN
+        // A recycled block is never returned to malloc, so ASan could not flag a use after free.
         limit_ = 0;
 #else
         limit_ = int64_t(1) << 30;
@@ -56,6 +57,8 @@ public:
         size_t best = blocks_.size();
         for (size_t i = 0; i < blocks_.size(); ++i) {
             const size_t c = blocks_[i].capacity;
+            // The 1/8 cap keeps a small tensor from pinning a much larger block; among the blocks
+            // that qualify, the smallest (best fit) wins.
             if (c >= bytes && c <= bytes + bytes / 8 &&
                 (best == blocks_.size() || c < blocks_[best].capacity))
                 best = i;
@@ -72,10 +75,12 @@ public:
     // Keeps the block for reuse (evicting the oldest ones to stay within the limit), or frees it.
     void give(void* p, size_t capacity) {
         std::lock_guard<std::mutex> lock(mu_);
+        // A block larger than the whole limit can never be cached (limit 0 disables the cache).
         if (int64_t(capacity) > limit_) {
             std::free(p);
             return;
         }
+        // Make room first so the cache never exceeds its limit, even briefly.
         trim_locked(limit_ - int64_t(capacity));
         blocks_.push_back({p, capacity});
         cached_ += int64_t(capacity);
@@ -88,6 +93,7 @@ public:
     void set_limit(int64_t bytes) {
         G2L_CHECK(bytes >= 0, "Storage::set_cpu_cache_limit: limit must be >= 0, got ", bytes);
         std::lock_guard<std::mutex> lock(mu_);
+// Under ASan the limit stays 0 whatever is asked, for the reason given in the constructor.
 #ifndef G2L_ASAN
         limit_ = bytes;
 #endif
@@ -138,11 +144,16 @@ Storage::Storage(size_t nbytes, Device device) : nbytes_(nbytes), device_(device
         // aligned_alloc needs a size that is a multiple of the alignment (and > 0).
         capacity_ = std::max(round_up(nbytes, kAlign), kAlign);
         if (capacity_ >= kCacheMin) {
+            // Whole pages: requests that differ by a few bytes ask for the same capacity and can
+            // share blocks.
             capacity_ = round_up(capacity_, kPage);
+            // take() may hand back a somewhat larger block; capacity_ becomes its real size so
+            // that the destructor returns it to the cache with the right size.
             data_ = cache().take(capacity_, &capacity_);
         }
         if (!data_) data_ = std::aligned_alloc(kAlign, capacity_);
         G2L_CHECK(data_ != nullptr, "out of memory allocating ", nbytes, " bytes on cpu");
+        // Counts requested bytes (what tensors use), not capacity; the cache has its own count.
         g_cpu_bytes += int64_t(nbytes);
     } else {
         data_ = cuda::malloc_device(nbytes, device.index);
@@ -151,6 +162,7 @@ Storage::Storage(size_t nbytes, Device device) : nbytes_(nbytes), device_(device
 
 Storage::~Storage() {
     if (device_.is_cpu()) {
+        // Same threshold as the constructor: only blocks that may have come from the cache go back.
         if (capacity_ >= kCacheMin) cache().give(data_, capacity_);
         else std::free(data_);
         g_cpu_bytes -= int64_t(nbytes_);

@@ -63,6 +63,8 @@ Tensor Tensor::ones(const Shape& shape, DType dtype, Device dev) {
 }
 
 Tensor Tensor::full(const Shape& shape, double value, DType dtype, Device dev) {
+    // There is no CUDA fill kernel (only memset_zero), so the values are made on the CPU and
+    // copied.
     Tensor t = empty(shape, dtype, Device::cpu());
     fill_any(t.data(), t.numel(), dtype, value);
     return dev.is_cpu() ? t : t.to(dev);
@@ -114,6 +116,7 @@ const Shape& Tensor::shape() const {
 
 int64_t Tensor::size(int64_t d) const {
     const int64_t n = dim();
+    // Negative dimensions count from the end, as in PyTorch: size(-1) is the last dimension.
     const int64_t k = d < 0 ? d + n : d;
     G2L_CHECK(k >= 0 && k < n, "Tensor::size: dimension ", d, " out of range for shape ",
               shape_str(shape()));
@@ -158,6 +161,7 @@ const void* Tensor::data() const {
 template <class T>
 T Tensor::item() const {
     G2L_CHECK(numel() == 1, "Tensor::item: needs exactly one element, got ", desc());
+    // Copies (and waits for) a CUDA value; a no-op alias on the CPU.
     const Tensor c = to(Device::cpu());
     switch (c.dtype()) {
         case DType::F32: return static_cast<T>(*static_cast<const float*>(c.data()));
@@ -180,6 +184,8 @@ Tensor Tensor::clone() const {
 
 Tensor Tensor::detach() const {
     check_defined("detach");
+    // A fresh impl sharing the storage but with no grad_fn, requires_grad or grad: backward
+    // closures capture outputs this way to avoid a Node -> output -> Node reference cycle.
     auto impl = std::make_shared<TensorImpl>();
     impl->storage = impl_->storage;
     impl->offset = impl_->offset;
@@ -189,6 +195,7 @@ Tensor Tensor::detach() const {
 }
 
 Tensor Tensor::to(Device dev) const {
+    // Same device: alias, no copy and no graph node.
     if (dev == device()) return *this;
     Tensor out = empty(shape(), dtype(), dev);
     copy_bytes(out.data(), dev, data(), device(), nbytes());
@@ -200,6 +207,7 @@ Tensor Tensor::to(Device dev) const {
 
 Tensor Tensor::to(DType dt) const {
     if (dt == dtype()) return *this;
+    // There is no CUDA cast kernel; casts happen on the CPU (f64 is a CPU test dtype anyway).
     G2L_CHECK(device().is_cpu(), "Tensor::to(dtype): only on cpu, tensor is ", desc());
     Tensor out = empty(shape(), dt);
     const int64_t n = numel();
@@ -242,6 +250,8 @@ Tensor Tensor::reshape(const Shape& new_shape) const {
     }
     G2L_CHECK(shape_numel(s) == numel(), "reshape: cannot reshape ", desc(), " (", numel(),
               " elements) to ", shape_str(new_shape));
+    // Tensors are always dense row-major, so every reshape is a view of the same storage; the
+    // recorded node reconnects the view to the graph.
     Tensor out = detach();
     out.impl()->shape = s;
     const Shape old = shape();
@@ -251,6 +261,8 @@ Tensor Tensor::reshape(const Shape& new_shape) const {
 }
 
 void Tensor::fill_(double value) {
+    // Overwriting a trainable leaf while recording would make the gradients silently wrong; such
+    // writes (init, optimizer, loading) must run under NoGradGuard.
     G2L_CHECK(!(requires_grad() && autograd::grad_enabled() && is_leaf()),
               "fill_: in-place write to a leaf that requires grad; use NoGradGuard");
     if (device().is_cpu()) {
@@ -258,6 +270,7 @@ void Tensor::fill_(double value) {
     } else {
         copy_(full(shape(), value, dtype()));
     }
+    // Any node that saved this storage now fails its version check instead of using new values.
     impl_->storage->bump_version();
 }
 
@@ -291,6 +304,8 @@ Tensor Tensor::grad() const {
 
 void Tensor::zero_grad() {
     check_defined("zero_grad");
+    // Dropped rather than zero-filled: the next backward stores a fresh copy (add_to_leaf), and a
+    // parameter that gets no gradient stays undefined instead of holding zeros.
     impl_->grad.reset();
 }
 

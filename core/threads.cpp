@@ -17,6 +17,7 @@ int num_threads() {
 }
 
 void set_num_threads(int n) {
+    // Checked in both builds so a bad thread count fails the same way with and without OpenMP.
     G2L_CHECK(n >= 1, "set_num_threads: n must be >= 1, got ", n);
 #ifdef G2L_WITH_OPENMP
     omp_set_num_threads(n);

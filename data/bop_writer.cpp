@@ -35,14 +35,18 @@ void write_png(const std::string& path, const cv::Mat& img) {
     std::vector<uint8_t> buf;
     G2L_CHECK(cv::imencode(".png", img, buf), "BopSceneWriter: PNG encoding failed for '", path,
               "'");
+    // Not durable (no fsync): an image lost in a crash is simply rendered again.
     write_file_atomic(path, std::string(buf.begin(), buf.end()), /*durable=*/false);
 }
 
 json box_json(const geom::Box2i& b) {
+    // An object with no pixels gets [-1, -1, -1, -1], the BOP toolkit's own convention.
     return b.empty() ? json::array({-1, -1, -1, -1}) : json::array({b.x, b.y, b.w, b.h});
 }
 
 // One JSON document {"<id>": value, ...} from already serialised values, in image-id order.
+// flush() rewrites the whole files after every batch of frames: keeping each frame's value as
+// text makes that a string concatenation, and the map keeps image-id order.
 std::string assemble(const std::map<int, std::string>& entries) {
     std::string s = "{\n";
     size_t i = 0;
@@ -90,6 +94,8 @@ void BopSceneWriter::write(int image_id, const RenderedFrame& f) {
     cv::Mat depth(H, W, CV_16UC1);
     uint16_t* d = depth.ptr<uint16_t>();
     for (size_t i = 0; i < n; ++i) {
+        // BOP depth PNGs hold z / depth_scale; 0 means "no measurement", so misses (z <= 0) and
+        // values past the uint16 range are both written as 0.
         const double q = std::round(double(f.depth[i]) / f.depth_scale);
         d[i] = (q > 0 && q <= 65535.0) ? uint16_t(q) : uint16_t(0);
     }
@@ -103,11 +109,13 @@ void BopSceneWriter::write(int image_id, const RenderedFrame& f) {
                   f.full_masks[k].size(), " pixels, expected ", n);
         std::copy(f.full_masks[k].begin(), f.full_masks[k].end(), m.data);
         write_png((dir / "mask" / mask_name(image_id, int(k))).string(), m);
+        // f.mask holds k + 1 where instance k is visible (0 elsewhere): its mask_visib.
         for (size_t i = 0; i < n; ++i) m.data[i] = f.mask[i] == k + 1 ? 255 : 0;
         write_png((dir / "mask_visib" / mask_name(image_id, int(k))).string(), m);
 
         json R = json::array(), t = json::array();
         for (int r = 0; r < 3; ++r) {
+            // BOP stores cam_R_m2c row-major and cam_t_m2c in mm, model to camera.
             for (int c = 0; c < 3; ++c) R.push_back(in.pose.R(r, c));
             t.push_back(in.pose.t[r]);
         }
@@ -138,6 +146,7 @@ void BopSceneWriter::flush() const {
 void BopSceneWriter::finish() const {
     flush();
     std::error_code ec;
+    // Removed only after the final flush, so a scene without the marker is always complete.
     fs::remove(fs::path(dir_) / kIncompleteMarker, ec);
     G2L_CHECK(!ec, "BopSceneWriter: cannot remove '", (fs::path(dir_) / kIncompleteMarker).string(),
               "': ", ec.message());
@@ -145,6 +154,7 @@ void BopSceneWriter::finish() const {
 
 std::string read_symmetries(const std::string& models_info_path, int obj_id) {
     std::error_code ec;
+    // No models_info.json: no declared symmetries (BOP readers treat absent ones as none).
     if (!fs::is_regular_file(models_info_path, ec)) return "";
     const json all = parse_json_file(models_info_path);
     const std::string key = std::to_string(obj_id);
@@ -170,6 +180,8 @@ void write_bop_models(const std::string& models_dir, const std::vector<SceneMode
         char name[32];
         std::snprintf(name, sizeof name, "obj_%06d.ply", m.obj_id);
         const std::string path = (fs::path(models_dir) / name).string();
+        // save_ply writes in place, so it writes a temporary that is renamed over the final name: a
+        // crash never leaves a truncated model.
         const std::string tmp = path + ".tmp.ply";
         geom::save_ply(tmp, *m.mesh);
         fs::rename(tmp, path, ec);
@@ -185,6 +197,41 @@ void write_bop_models(const std::string& models_dir, const std::vector<SceneMode
         info[m.obj_id] = j.dump();
     }
     write_file_atomic((fs::path(models_dir) / "models_info.json").string(), assemble(info));
+}
+
+std::vector<int> mesh_file_ids(const std::vector<std::string>& files) {
+    auto bop_id = [](const std::string& file) {
+        const std::string stem = fs::path(file).stem().string();
+        if (stem.size() < 5 || stem.size() > 13 || stem.compare(0, 4, "obj_") != 0) return -1;
+        for (size_t i = 4; i < stem.size(); ++i)
+            if (stem[i] < '0' || stem[i] > '9') return -1;
+        const int id = std::stoi(stem.substr(4));
+        return id > 0 ? id : -1;
+    };
+    std::vector<int> ids(files.size(), -1);
+    std::map<int, size_t> owner;
+    for (size_t i = 0; i < files.size(); ++i) {
+        const int id = bop_id(files[i]);
+        if (id < 0) continue;
+        G2L_CHECK(!owner.count(id), "'", files[owner[id]], "' and '", files[i],
+                  "' both give object ", id);
+        owner[id] = i;
+        ids[i] = id;
+    }
+    int next = 1;
+    for (size_t i = 0; i < files.size(); ++i) {
+        if (ids[i] > 0) continue;
+        while (owner.count(next)) ++next;
+        owner[next] = i;
+        ids[i] = next;
+    }
+    return ids;
+}
+
+void write_obj_names(const std::string& root, const std::map<int, std::string>& names) {
+    json j = json::object();
+    for (const auto& [id, name] : names) j[std::to_string(id)] = name;
+    write_file_atomic((fs::path(root) / "obj_names.json").string(), j.dump(2) + "\n");
 }
 
 }  // namespace g2l::data

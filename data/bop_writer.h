@@ -56,6 +56,16 @@ private:
 /// declares none). Throws g2l::Error naming the file for invalid JSON or a non-array entry.
 std::string read_symmetries(const std::string& models_info_path, int obj_id);
 
+/// The object ids of mesh files handed in (g2l_render --models, g2l_train --objects): a file
+/// named obj_NNNNNN.ply / .obj keeps NNNNNN (a BOP folder stays comparable with its dataset);
+/// the others get the smallest ids no file claims, in the order given. Throws g2l::Error
+/// naming both files when two claim one id.
+std::vector<int> mesh_file_ids(const std::vector<std::string>& files);
+
+/// Writes <root>/obj_names.json ({"<id>": "<name>"}, BOP's optional names file: g2l_eval's
+/// tables and g2l_infer --vis show them). Throws g2l::Error on a write error.
+void write_obj_names(const std::string& root, const std::map<int, std::string>& names);
+
 /// Writes each mesh as <models_dir>/obj_%06d.ply (geometry/mesh_io.h save_ply) and
 /// models_info.json (diameter, min_*, size_* from compute_model_info, and the model's declared
 /// symmetries, SceneModel::symmetries; none declared: none written, BOP readers treat absent

@@ -33,10 +33,13 @@ std::vector<Detection> parse_bop_detections(const std::string& text, const std::
             return v;
         };
         Detection d;
+        // BOP detection files are COCO-style (category_id); obj_id is accepted too, but not both,
+        // so an entry can never disagree with itself.
         G2L_CHECK(e.has("category_id") != e.has("obj_id"), src, ": '", e.at("category_id"),
                   "': needs exactly one of 'category_id' and 'obj_id'");
         d.obj_id = integer(e.has("category_id") ? "category_id" : "obj_id", 1);
         if (e.has("scene_id")) d.scene_id = integer("scene_id", 0);
+        // Same for the image: BOP detections say image_id, its GT and results files im_id.
         G2L_CHECK(!(e.has("image_id") && e.has("im_id")), src, ": '", e.at("image_id"),
                   "': both 'image_id' and 'im_id'");
         if (e.has("image_id")) d.image_id = integer("image_id", 0);
@@ -57,6 +60,7 @@ std::vector<Detection> parse_bop_detections(const std::string& text, const std::
                       "' must be >= 0, got [", d.peak_x, ", ", d.peak_y, "]");
         }
         e.ignore("segmentation");  // BOP's RLE mask: not used
+        // Any other key is an error (typos such as "scroe" must not pass silently).
         e.finish();
         out.push_back(d);
     }
@@ -110,8 +114,11 @@ std::vector<PoseRow> parse_bop_results_csv(const std::string& text, const std::s
     int n = 0;
     while (std::getline(in, line)) {
         ++n;
+        // Tolerate CRLF line ends (files written on Windows).
         if (!line.empty() && line.back() == '\r') line.pop_back();
         if (n == 1) {
+            // The exact BOP Challenge header: a file without it is most likely another
+            // format, whose columns would otherwise be misread.
             G2L_CHECK(line == "scene_id,im_id,obj_id,score,R,t,time", "results '", what,
                       "': the first line must be the BOP header 'scene_id,im_id,obj_id,score,R,"
                       "t,time', got '", line, "'");
@@ -121,6 +128,7 @@ std::vector<PoseRow> parse_bop_results_csv(const std::string& text, const std::s
         std::vector<std::string> f;
         size_t start = 0;
         for (size_t k = 0; k <= line.size(); ++k)
+            // A plain split: BOP fields are never quoted (R and t are space-separated).
             if (k == line.size() || line[k] == ',') f.push_back(line.substr(start, k - start)), start = k + 1;
         G2L_CHECK(f.size() == 7, "results '", what, "' line ", n, ": expected 7 comma-separated "
                   "fields (scene_id,im_id,obj_id,score,R,t,time), got ", f.size());
@@ -128,6 +136,7 @@ std::vector<PoseRow> parse_bop_results_csv(const std::string& text, const std::s
         int ids[3];
         for (int k = 0; k < 3; ++k) {
             const std::vector<double> v = csv_numbers(f[size_t(k)], what, n, names[k]);
+            // Whole numbers only; obj_id starts at 1 as BOP ids do, scene and image ids at 0.
             G2L_CHECK(v.size() == 1 && v[0] == std::floor(v[0]) && v[0] >= (k == 2 ? 1 : 0) &&
                           v[0] < 2e9,
                       "results '", what, "' line ", n, ": ", names[k], " '", f[size_t(k)],

@@ -52,6 +52,7 @@ geom::Pose pose_from(const YamlRecord& rec, const std::string& file) {
     geom::Pose p;
     for (int i = 0; i < 9; ++i) p.R(i / 3, i % 3) = r[i];
     p.t = Eigen::Vector3d(t[0], t[1], t[2]);
+    // det > 0 also rejects reflections, which orthogonality alone would let through.
     const double orth = (p.R.transpose() * p.R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
     G2L_CHECK(orth < 1e-2 && p.R.determinant() > 0, file, ":", rec.fields.at("cam_R_m2c").line,
               ": cam_R_m2c is not a rotation matrix (max |R^T R - I| = ", orth, ")");
@@ -75,6 +76,7 @@ FolderResult read_folder(const fs::path& dir, int obj, const LinemodOptions& opt
     const std::map<int, YamlBlock> gt = parse_int_keyed_yaml(gt_file);
     const std::map<int, YamlBlock> info = parse_int_keyed_yaml(info_file);
     std::vector<int> ids;
+    // "all": every image annotated in gt.yml, whatever the train/test lists say.
     if (opt.split == "all") {
         for (const auto& kv : gt) ids.push_back(kv.first);
     } else {
@@ -97,6 +99,7 @@ FolderResult read_folder(const fs::path& dir, int obj, const LinemodOptions& opt
             G2L_CHECK(fs::is_regular_file(fr.depth_path), "Linemod image ", id, " of folder ",
                       scene, " is listed but '", fr.depth_path, "' does not exist");
         }
+        // Read once per folder: one camera took every image of a LINEMOD object folder.
         if (width == 0) image_size(fr.rgb_path, &width, &height);
 
         const auto ic = info.find(id);
@@ -104,6 +107,7 @@ FolderResult read_folder(const fs::path& dir, int obj, const LinemodOptions& opt
                   ": no entry for image ", id);
         const YamlRecord& cam = ic->second.records.front();
         const std::vector<double>& k = yaml_numbers(cam, "cam_K", 9, info_file);
+        // Re-thrown with the info.yml file and line, which the intrinsics check cannot know.
         try {
             fr.K = geom::intrinsics_from_cam_K(k.data(), width, height);
         } catch (const Error& e) {
@@ -121,6 +125,8 @@ FolderResult read_folder(const fs::path& dir, int obj, const LinemodOptions& opt
             const YamlRecord& r = recs[i];
             Instance inst;
             inst.obj_id = as_int(yaml_numbers(r, "obj_id", 1, gt_file), "obj_id", gt_file, r.line);
+            // The masks in data/NN/mask show only the folder's own object, so the other objects
+            // (folder 02 annotates all of LM-O) have no mask and are dropped unless asked for.
             if (inst.obj_id != obj && opt.only_folder_object) continue;
             inst.pose = pose_from(r, gt_file);
             const std::vector<double>& bb = yaml_numbers(r, "obj_bb", 4, gt_file);
@@ -128,6 +134,8 @@ FolderResult read_folder(const fs::path& dir, int obj, const LinemodOptions& opt
                              static_cast<int>(bb[2]), static_cast<int>(bb[3])};
             inst.index_in_frame = static_cast<int>(i);
             if (inst.obj_id == obj) {
+                // mask/NNNN.png is the mask of the folder's object: a second instance of it
+                // would be ambiguous.
                 G2L_CHECK(!own, gt_file, ":", r.line, ": image ", id, " lists object ", obj,
                           " twice");
                 own = true;
@@ -139,10 +147,13 @@ FolderResult read_folder(const fs::path& dir, int obj, const LinemodOptions& opt
             out.objects.insert(inst.obj_id);
             fr.instances.push_back(std::move(inst));
         }
+        // Folder NN is object NN's sequence (its masks, its train/test lists), so each of its
+        // frames must show that object.
         G2L_CHECK(own, gt_file, ":", g->second.line, ": image ", id, " has no instance of the ",
                   "folder's object ", obj);
         out.frames.push_back(std::move(fr));
     }
+    // Split lists need not be sorted; frames come out in image order either way.
     std::sort(out.frames.begin(), out.frames.end(),
               [](const Frame& a, const Frame& b) { return a.image_id < b.image_id; });
     return out;
@@ -186,6 +197,7 @@ LinemodDataset open_linemod_preprocessed(const std::string& root_str, const Line
     const std::string info_path = (models_dir / "models_info.yml").string();
     const std::map<int, geom::ModelInfo> infos = geom::load_models_info_yml(info_path);
     const std::vector<int> sym =
+        // LINEMOD's ADD-S objects are eggbox (10) and glue (11) (spec §11.1).
         opt.symmetric_ids ? *opt.symmetric_ids : symmetric_convention("linemod");
     std::map<int, ObjectModel> models;
     for (int id : used) {

@@ -57,6 +57,44 @@ inline int64_t edge(int64_t ax, int64_t ay, int64_t bx, int64_t by, int64_t px, 
     return (bx - ax) * (py - ay) - (by - ay) * (px - ax);
 }
 
+// One triangle of a clipped polygon on the screen, in 1/16-pixel fixed point, wound
+// counter-clockwise, with the pixel rows and columns it may cover; false when it covers no pixel
+// centre (or has no area).
+bool screen_triangle(const ClipVertex* const v[3], const geom::Intrinsics& K,
+                     const Eigen::Vector3f& n_view, int32_t instance_id, Renderer::ScreenTri* out) {
+    const float fx = float(K.fx), fy = float(K.fy), cx = float(K.cx), cy = float(K.cy);
+    Renderer::ScreenTri& st = *out;
+    for (int j = 0; j < 3; ++j) {
+        const float iz = 1.0f / v[j]->p.z();
+        st.x[j] = std::llround(double(fx * v[j]->p.x() * iz + cx) * kSub);
+        st.y[j] = std::llround(double(fy * v[j]->p.y() * iz + cy) * kSub);
+        st.inv_z[j] = iz;
+        for (int c = 0; c < 3; ++c) st.col[j][c] = v[j]->c[c];
+    }
+    st.area2 = edge(st.x[0], st.y[0], st.x[1], st.y[1], st.x[2], st.y[2]);
+    if (st.area2 == 0) return false;
+    if (st.area2 < 0) {  // make the screen winding positive
+        std::swap(st.x[1], st.x[2]);
+        std::swap(st.y[1], st.y[2]);
+        std::swap(st.inv_z[1], st.inv_z[2]);
+        for (int c = 0; c < 3; ++c) std::swap(st.col[1][c], st.col[2][c]);
+        st.area2 = -st.area2;
+    }
+    const int64_t x_lo = std::min({st.x[0], st.x[1], st.x[2]});
+    const int64_t x_hi = std::max({st.x[0], st.x[1], st.x[2]});
+    const int64_t y_lo = std::min({st.y[0], st.y[1], st.y[2]});
+    const int64_t y_hi = std::max({st.y[0], st.y[1], st.y[2]});
+    st.xmin = int32_t(std::max<int64_t>(0, ceil_sub(x_lo)));
+    st.xmax = int32_t(std::min<int64_t>(K.width - 1, floor_sub(x_hi)));
+    st.ymin = int32_t(std::max<int64_t>(0, ceil_sub(y_lo)));
+    st.ymax = int32_t(std::min<int64_t>(K.height - 1, floor_sub(y_hi)));
+    if (st.xmin > st.xmax || st.ymin > st.ymax) return false;  // covers no pixel centre
+    for (int c = 0; c < 3; ++c) st.n[c] = n_view[c];
+    st.instance_id = instance_id;
+    return true;
+}
+
+
 // Top-left fill rule for triangles with positive edge() area (screen y points down): pixels
 // exactly on a top edge (horizontal, going right) or a left edge (going up) belong to the
 // triangle, pixels on other edges do not. Returns the bias subtracted from the edge value.
@@ -161,35 +199,8 @@ void Renderer::setup_object(const RenderObject& obj, int index, const RenderOpti
         // Fan-triangulate the (convex) clipped polygon.
         for (int k = 1; k + 1 < n_poly; ++k) {
             const ClipVertex* v[3] = {&poly[cur][0], &poly[cur][k], &poly[cur][k + 1]};
-            ScreenTri st;
-            for (int j = 0; j < 3; ++j) {
-                const float iz = 1.0f / v[j]->p.z();
-                st.x[j] = std::llround(double(fx * v[j]->p.x() * iz + cx) * kSub);
-                st.y[j] = std::llround(double(fy * v[j]->p.y() * iz + cy) * kSub);
-                st.inv_z[j] = iz;
-                for (int c = 0; c < 3; ++c) st.col[j][c] = v[j]->c[c];
-            }
-            st.area2 = edge(st.x[0], st.y[0], st.x[1], st.y[1], st.x[2], st.y[2]);
-            if (st.area2 == 0) continue;
-            if (st.area2 < 0) {  // make the screen winding positive
-                std::swap(st.x[1], st.x[2]);
-                std::swap(st.y[1], st.y[2]);
-                std::swap(st.inv_z[1], st.inv_z[2]);
-                for (int c = 0; c < 3; ++c) std::swap(st.col[1][c], st.col[2][c]);
-                st.area2 = -st.area2;
-            }
-            const int64_t x_lo = std::min({st.x[0], st.x[1], st.x[2]});
-            const int64_t x_hi = std::max({st.x[0], st.x[1], st.x[2]});
-            const int64_t y_lo = std::min({st.y[0], st.y[1], st.y[2]});
-            const int64_t y_hi = std::max({st.y[0], st.y[1], st.y[2]});
-            st.xmin = int32_t(std::max<int64_t>(0, ceil_sub(x_lo)));
-            st.xmax = int32_t(std::min<int64_t>(K_.width - 1, floor_sub(x_hi)));
-            st.ymin = int32_t(std::max<int64_t>(0, ceil_sub(y_lo)));
-            st.ymax = int32_t(std::min<int64_t>(K_.height - 1, floor_sub(y_hi)));
-            if (st.xmin > st.xmax || st.ymin > st.ymax) continue;  // covers no pixel centre
-            for (int c = 0; c < 3; ++c) st.n[c] = n_view[c];
-            st.instance_id = obj.instance_id;
-            tris_.push_back(st);
+            Renderer::ScreenTri st;
+            if (screen_triangle(v, K_, n_view, obj.instance_id, &st)) tris_.push_back(st);
         }
     }
 }

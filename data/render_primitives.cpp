@@ -35,8 +35,11 @@ geom::Mesh make_box(double sx, double sy, double sz) {
 
 geom::Mesh make_icosphere(double radius, int subdivisions) {
     G2L_CHECK(radius > 0, "make_icosphere: radius must be > 0, got ", radius);
+    // Each level multiplies the triangles by 4; 7 levels already give 20 * 4^7 = 327,680.
     G2L_CHECK(subdivisions >= 0 && subdivisions <= 7,
               "make_icosphere: subdivisions must be in [0, 7], got ", subdivisions);
+    // The regular icosahedron's vertices are the cyclic permutations of (0, +-1, +-g), g the
+    // golden ratio; they are put on the unit sphere and scaled by `radius` at the end.
     const double g = (1.0 + std::sqrt(5.0)) / 2.0;
     std::vector<Eigen::Vector3d> v = {{-1, g, 0}, {1, g, 0},  {-1, -g, 0}, {1, -g, 0},
                                       {0, -1, g}, {0, 1, g},  {0, -1, -g}, {0, 1, -g},
@@ -47,6 +50,8 @@ geom::Mesh make_icosphere(double radius, int subdivisions) {
         {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
         {3, 8, 9},  {4, 9, 5},  {2, 4, 11},  {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
     for (int s = 0; s < subdivisions; ++s) {
+        // One midpoint per edge, shared by the two triangles on it: the mesh stays watertight with
+        // no duplicated vertices. minmax makes (a, b) and (b, a) the same edge.
         std::map<std::pair<int, int>, int> mid;
         auto midpoint = [&](int a, int b) {
             const auto key = std::minmax(a, b);
@@ -60,6 +65,8 @@ geom::Mesh make_icosphere(double radius, int subdivisions) {
         next.reserve(f.size() * 4);
         for (const auto& t : f) {
             const int a = midpoint(t[0], t[1]), b = midpoint(t[1], t[2]), c = midpoint(t[2], t[0]);
+            // The four children keep the parent's winding, so the faces stay counter-clockwise from
+            // outside.
             next.push_back({t[0], a, c});
             next.push_back({t[1], b, a});
             next.push_back({t[2], c, b});
@@ -73,6 +80,7 @@ geom::Mesh make_icosphere(double radius, int subdivisions) {
     m.normals.resize(Eigen::Index(v.size()), 3);
     for (size_t i = 0; i < v.size(); ++i) {
         m.vertices.row(Eigen::Index(i)) = (v[i] * radius).cast<float>().transpose();
+        // On a sphere the unit position is the exact normal.
         m.normals.row(Eigen::Index(i)) = v[i].cast<float>().transpose();
     }
     m.faces.resize(Eigen::Index(f.size()), 3);
@@ -99,6 +107,7 @@ geom::Mesh make_quad(double size, int n) {
     for (int j = 0; j < n; ++j) {
         for (int i = 0; i < n; ++i) {
             const int a = j * nv + i, b = a + 1, c = a + nv, d = c + 1;
+            // Counter-clockwise seen from +z, so the normal is +z as documented.
             m.faces.row(2 * (j * n + i)) << a, b, d;
             m.faces.row(2 * (j * n + i) + 1) << a, d, c;
         }

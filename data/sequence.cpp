@@ -36,6 +36,7 @@ std::vector<SequenceFrame> list_bop_scene(const std::string& dir) {
         const fs::path p = e.path();
         if (p.extension() != ".png") continue;
         const std::string stem = p.stem().string();
+        // At most 9 digits, so the stoi below cannot overflow an int.
         G2L_CHECK(!stem.empty() && stem.size() <= 9 &&
                       std::all_of(stem.begin(), stem.end(), [](char c) { return c >= '0' && c <= '9'; }),
                   "scene '", dir, "': depth file '", p.filename().string(),
@@ -43,6 +44,7 @@ std::vector<SequenceFrame> list_bop_scene(const std::string& dir) {
         SequenceFrame f;
         f.image_id = std::stoi(stem);
         f.depth = p.string();
+        // BOP scenes store colour as PNG (real captures) or JPEG (the PBR training renders).
         for (const char* ext : {".png", ".jpg", ".jpeg"}) {
             const fs::path rgb = fs::path(dir) / "rgb" / (stem + ext);
             if (fs::is_regular_file(rgb, ec)) {
@@ -51,6 +53,7 @@ std::vector<SequenceFrame> list_bop_scene(const std::string& dir) {
             }
         }
         const std::string key = std::to_string(f.image_id);
+        // A missing or bad camera entry fails only this frame (camera_error); the others still run.
         try {
             G2L_CHECK(cams.contains(key), source, ": no entry for image ", f.image_id, " (key \"",
                       key, "\")");
@@ -62,6 +65,7 @@ std::vector<SequenceFrame> list_bop_scene(const std::string& dir) {
     }
     G2L_CHECK(!list_ec, "scene '", dir, "': cannot list depth/: ", list_ec.message());
     G2L_CHECK(!frames.empty(), "scene '", dir, "': no depth image (depth/NNNNNN.png)");
+    // directory_iterator's order is unspecified: sort by image id to get the video's order.
     std::sort(frames.begin(), frames.end(),
               [](const SequenceFrame& a, const SequenceFrame& b) { return a.image_id < b.image_id; });
     return frames;
@@ -72,6 +76,7 @@ std::vector<SequenceFrame> list_frames_file(const std::string& path, const Camer
     G2L_CHECK(in.good(), "frame list '", path, "' cannot be opened");
     const fs::path base = fs::path(path).parent_path();
     auto resolve = [&](const std::string& p) {
+        // Relative paths are relative to the list file, so a list works from any working directory.
         return fs::path(p).is_absolute() || base.empty() ? p : (base / p).string();
     };
     std::vector<SequenceFrame> frames;

@@ -9,11 +9,17 @@
 
 namespace g2l::geom {
 
+// G2L recovers rotations this way twice (spec §1 steps 8-9): block B's keypoints -> R, then
+// R * corners + block C's residuals -> the final Rg.
 Eigen::Matrix3d rotation_from_covariance(const Eigen::Matrix3d& H) {
+    // JacobiSVD is the accurate choice for a 3 x 3 and stays orthogonal for rank-deficient H
+    // (collinear or coplanar points); fixed-size matrices need the Full (not Thin) U and V.
     const Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
     const Eigen::Matrix3d& U = svd.matrixU();
     const Eigen::Matrix3d& V = svd.matrixV();
     // d corrects a reflection; the smallest singular value (last column) takes the sign flip.
+    // The standard reflection fix of spec §7; the released G2L code negates a column of V^T
+    // instead, which does not give the nearest proper rotation.
     const double d = (V * U.transpose()).determinant() < 0 ? -1.0 : 1.0;
     return V * Eigen::Vector3d(1, 1, d).asDiagonal() * U.transpose();
 }
@@ -23,8 +29,10 @@ namespace {
 template <class Pts>
 void check_pair(const Pts& P, const Pts& Q, const char* fn) {
     G2L_CHECK(P.rows() == Q.rows(), fn, ": P has ", P.rows(), " points but Q has ", Q.rows());
+    // Fewer than 3 pairs cannot pin down a rotation.
     G2L_CHECK(P.rows() >= 3, fn, ": need at least 3 point pairs, got ", P.rows());
     for (Eigen::Index i = 0; i < P.rows(); ++i) {
+        // A single NaN would pass silently through the SVD into R.
         G2L_CHECK(P.row(i).allFinite() && Q.row(i).allFinite(), fn, ": row ", i,
                   " is not finite: P=(", P.row(i), ") Q=(", Q.row(i), ")");
     }
@@ -39,11 +47,13 @@ Pose solve(const Pts& P, const Pts& Q, const std::vector<double>* w) {
     for (Eigen::Index i = 0; i < n; ++i) {
         const double wi = w ? (*w)[i] : 1.0;
         wsum += wi;
+        // Accumulated in double even for float points (centroids of hundreds of mm-sized values).
         pm += wi * P.row(i).template cast<double>().transpose();
         qm += wi * Q.row(i).template cast<double>().transpose();
     }
     pm /= wsum;
     qm /= wsum;
+    // Centring both sets first separates rotation from translation; t follows from the means.
     Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
     for (Eigen::Index i = 0; i < n; ++i) {
         const double wi = w ? (*w)[i] : 1.0;
@@ -110,11 +120,14 @@ void kabsch_batched(const float* P, const float* Q, int B, int K, float* R_out) 
               "kabsch_batched: null buffer (P=", static_cast<const void*>(P), " Q=",
               static_cast<const void*>(Q), " R_out=", static_cast<const void*>(R_out), ")");
     const int64_t n = int64_t(B) * K * 3;
+    // Validated before the parallel loop: an exception must not escape an OpenMP region (it
+    // would terminate the process).
     for (int64_t i = 0; i < n; ++i) {
         G2L_CHECK(std::isfinite(P[i]) && std::isfinite(Q[i]), "kabsch_batched: non-finite value "
                   "at b=", i / (int64_t(K) * 3), " k=", (i / 3) % K, " (P=", P[i], " Q=", Q[i],
                   ")");
     }
+    // One item per iteration, independent of the others: no cross-thread sums.
 #pragma omp parallel for schedule(static)
     for (int b = 0; b < B; ++b) {
         const float* p = P + int64_t(b) * K * 3;

@@ -376,6 +376,33 @@ bool find_support_plane(const Points& obs_all, const DepthImage& depth, const Re
            plane->inlier_frac >= opt.plane_min_inliers;
 }
 
+// The observed points split into Euclidean clusters (points closer than cluster_frac of the
+// diameter joined): the segmentation may have taken a neighbouring object too. Each cluster
+// holding at least cluster_min_share of the points is searched on its own; the lowest cost (fit
+// plus penalties) wins over `best`, the search over all the points.
+template <class Search>
+RefineResult search_clusters(const Points& obs_all, const ModelInfo& info, const RefineOptions& opt,
+                             RefineResult best, Search&& search) {
+    if (opt.cluster_frac <= 0) return best;
+    const std::vector<std::vector<int64_t>> clusters =
+        euclidean_clusters(obs_all, opt.cluster_frac * info.diameter);
+    if (clusters.size() < 2) return best;
+    for (size_t k = 0; k < clusters.size(); ++k) {
+        const auto& rows = clusters[k];
+        if (rows.size() < 3 || double(rows.size()) < opt.cluster_min_share * double(obs_all.rows()))
+            continue;
+        Points sub(int64_t(rows.size()), 3);
+        for (size_t i = 0; i < rows.size(); ++i) sub.row(int64_t(i)) = obs_all.row(rows[i]);
+        RefineResult rc = search(sub);
+        if (rc.fit_mm < best.fit_mm) {
+            rc.cluster = int(k);
+            rc.observed = int(rows.size());
+            best = rc;
+        }
+    }
+    return best;
+}
+
 }  // namespace
 
 RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const Points& obs_all,
@@ -461,30 +488,7 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
             }
         return r;
     };
-    RefineResult best = search(obs_all);
-    if (opt.cluster_frac > 0) {
-        // The observed points split into Euclidean clusters (points closer than cluster_frac of
-        // the diameter joined): the segmentation may have taken a neighbouring object too.
-        // Each cluster holding at least cluster_min_share of the points is searched on its own;
-        // the lowest cost (fit plus penalties) wins.
-        const std::vector<std::vector<int64_t>> clusters =
-            euclidean_clusters(obs_all, opt.cluster_frac * info.diameter);
-        if (clusters.size() > 1)
-            for (size_t k = 0; k < clusters.size(); ++k) {
-                const auto& rows = clusters[k];
-                if (rows.size() < 3 || double(rows.size()) < opt.cluster_min_share * double(n_all))
-                    continue;
-                Points sub(int64_t(rows.size()), 3);
-                for (size_t i = 0; i < rows.size(); ++i) sub.row(int64_t(i)) = obs_all.row(rows[i]);
-                RefineResult rc = search(sub);
-                if (rc.fit_mm < best.fit_mm) {
-                    rc.cluster = int(k);
-                    rc.observed = int(rows.size());
-                    best = rc;
-                }
-            }
-    }
-    return best;
+    return search_clusters(obs_all, info, opt, search(obs_all), search);
 }
 
 }  // namespace g2l::geom

@@ -60,34 +60,25 @@ Eigen::Vector3d centre_of_mass(const Mesh& mesh) {
     return mean;
 }
 
-std::vector<StablePose> stable_poses(const Mesh& mesh, const Eigen::Vector3d& com,
-                                     const StablePoseOptions& opt) {
-    G2L_CHECK(mesh.vertices.rows() > 0, "stable_poses: mesh '", mesh.path, "' has no vertices");
-    G2L_CHECK(opt.directions >= 100, "stable_poses: directions must be >= 100, got ", opt.directions);
-    G2L_CHECK(opt.neighbours >= 3 && opt.neighbours < opt.directions,
-              "stable_poses: neighbours must be in [3, directions), got ", opt.neighbours);
-    G2L_CHECK(opt.merge_deg > 0 && opt.merge_deg < 90, "stable_poses: merge_deg must be in (0, 90), got ",
-              opt.merge_deg);
-    G2L_CHECK(opt.min_probability >= 0 && opt.min_probability < 1,
-              "stable_poses: min_probability must be in [0, 1), got ", opt.min_probability);
-    G2L_CHECK(opt.max_vertices > 0, "stable_poses: max_vertices must be > 0, got ", opt.max_vertices);
-    const int64_t nv = mesh.vertices.rows();
-    const int64_t stride = std::max<int64_t>(1, (nv + opt.max_vertices - 1) / opt.max_vertices);
-    std::vector<Eigen::Vector3d> v;
-    for (int64_t i = 0; i < nv; i += stride) v.push_back(mesh.vertices.row(i).cast<double>().transpose() - com);
+namespace {
 
-    // Fibonacci sphere: equal-area drop directions.
-    const int N = opt.directions;
-    std::vector<Eigen::Vector3d> dir(static_cast<size_t>(N));
+// Fibonacci sphere: n equal-area drop directions.
+std::vector<Eigen::Vector3d> fibonacci_sphere(int n) {
+    std::vector<Eigen::Vector3d> dir(static_cast<size_t>(n));
     const double golden = kPi * (3.0 - std::sqrt(5.0));
-    for (int i = 0; i < N; ++i) {
-        const double z = 1.0 - 2.0 * (i + 0.5) / N, r = std::sqrt(std::max(0.0, 1 - z * z));
+    for (int i = 0; i < n; ++i) {
+        const double z = 1.0 - 2.0 * (i + 0.5) / n, r = std::sqrt(std::max(0.0, 1 - z * z));
         dir[size_t(i)] = Eigen::Vector3d(r * std::cos(golden * i), r * std::sin(golden * i), z);
     }
-    std::vector<double> h(static_cast<size_t>(N));
-    for (int i = 0; i < N; ++i) h[size_t(i)] = support(v, dir[size_t(i)]);
-    // k nearest directions of each (brute force; N is a few thousand).
-    const int k = opt.neighbours;
+    return dir;
+}
+
+// The basin of each direction: where steepest descent of the support height h over the graph of
+// each direction's k nearest (brute force; a few thousand directions) ends, a local minimum —
+// the face the object settles on when dropped that way up.
+std::vector<int> descent_basins(const std::vector<Eigen::Vector3d>& dir,
+                                const std::vector<double>& h, int k) {
+    const int N = int(dir.size());
     std::vector<std::vector<int>> nb(static_cast<size_t>(N));
     std::vector<std::pair<double, int>> cand(static_cast<size_t>(N));
     for (int i = 0; i < N; ++i) {
@@ -95,7 +86,6 @@ std::vector<StablePose> stable_poses(const Mesh& mesh, const Eigen::Vector3d& co
         std::partial_sort(cand.begin(), cand.begin() + k + 1, cand.end());
         for (int q = 1; q <= k; ++q) nb[size_t(i)].push_back(cand[size_t(q)].second);
     }
-    // Steepest descent of h over the neighbour graph: each direction's basin.
     std::vector<int> basin(static_cast<size_t>(N), -1);
     for (int i = 0; i < N; ++i) {
         int c = i;
@@ -113,6 +103,58 @@ std::vector<StablePose> stable_poses(const Mesh& mesh, const Eigen::Vector3d& co
         }
         for (int p : path) basin[size_t(p)] = basin[size_t(c)];
     }
+    return basin;
+}
+
+// A minimum of the support height refined by a pattern search on the sphere (8 directions,
+// the step halved until 1e-4 degrees): the sampled directions are ~2-4 degrees apart.
+void refine_minimum(const std::vector<Eigen::Vector3d>& v, Eigen::Vector3d* dp, double* hp) {
+    Eigen::Vector3d d = *dp;
+    double hd = *hp;
+    double step = 4.0 * kPi / 180.0;
+    while (step > 1e-4 * kPi / 180.0) {
+        const Eigen::Vector3d u = orthogonal(d), w = d.cross(u);
+        bool moved = false;
+        for (int a = 0; a < 8 && !moved; ++a) {
+            const double ang = a * kPi / 4.0;
+            const Eigen::Vector3d t = std::cos(ang) * u + std::sin(ang) * w;
+            const Eigen::Vector3d nd = (std::cos(step) * d + std::sin(step) * t).normalized();
+            const double nh = support(v, nd);
+            if (nh < hd - 1e-12) {
+                d = nd;
+                hd = nh;
+                moved = true;
+            }
+        }
+        if (!moved) step *= 0.5;
+    }
+    *dp = d;
+    *hp = hd;
+}
+
+}  // namespace
+
+std::vector<StablePose> stable_poses(const Mesh& mesh, const Eigen::Vector3d& com,
+                                     const StablePoseOptions& opt) {
+    G2L_CHECK(mesh.vertices.rows() > 0, "stable_poses: mesh '", mesh.path, "' has no vertices");
+    G2L_CHECK(opt.directions >= 100, "stable_poses: directions must be >= 100, got ", opt.directions);
+    G2L_CHECK(opt.neighbours >= 3 && opt.neighbours < opt.directions,
+              "stable_poses: neighbours must be in [3, directions), got ", opt.neighbours);
+    G2L_CHECK(opt.merge_deg > 0 && opt.merge_deg < 90, "stable_poses: merge_deg must be in (0, 90), got ",
+              opt.merge_deg);
+    G2L_CHECK(opt.min_probability >= 0 && opt.min_probability < 1,
+              "stable_poses: min_probability must be in [0, 1), got ", opt.min_probability);
+    G2L_CHECK(opt.max_vertices > 0, "stable_poses: max_vertices must be > 0, got ", opt.max_vertices);
+    const int64_t nv = mesh.vertices.rows();
+    const int64_t stride = std::max<int64_t>(1, (nv + opt.max_vertices - 1) / opt.max_vertices);
+    std::vector<Eigen::Vector3d> v;
+    for (int64_t i = 0; i < nv; i += stride) v.push_back(mesh.vertices.row(i).cast<double>().transpose() - com);
+
+    const int N = opt.directions;
+    const std::vector<Eigen::Vector3d> dir = fibonacci_sphere(N);
+    std::vector<double> h(static_cast<size_t>(N));
+    for (int i = 0; i < N; ++i) h[size_t(i)] = support(v, dir[size_t(i)]);
+    const std::vector<int> basin = descent_basins(dir, h, opt.neighbours);
     // Each minimum, refined by a pattern search on the sphere, with its basin's share.
     std::vector<StablePose> found;
     std::vector<int> count(static_cast<size_t>(N), 0);
@@ -121,23 +163,7 @@ std::vector<StablePose> stable_poses(const Mesh& mesh, const Eigen::Vector3d& co
         if (basin[size_t(m)] != m) continue;
         Eigen::Vector3d d = dir[size_t(m)];
         double hd = h[size_t(m)];
-        double step = 4.0 * kPi / 180.0;
-        while (step > 1e-4 * kPi / 180.0) {
-            const Eigen::Vector3d u = orthogonal(d), w = d.cross(u);
-            bool moved = false;
-            for (int a = 0; a < 8 && !moved; ++a) {
-                const double ang = a * kPi / 4.0;
-                const Eigen::Vector3d t = std::cos(ang) * u + std::sin(ang) * w;
-                const Eigen::Vector3d nd = (std::cos(step) * d + std::sin(step) * t).normalized();
-                const double nh = support(v, nd);
-                if (nh < hd - 1e-12) {
-                    d = nd;
-                    hd = nh;
-                    moved = true;
-                }
-            }
-            if (!moved) step *= 0.5;
-        }
+        refine_minimum(v, &d, &hd);
         StablePose p;
         p.down = d.cast<float>();
         p.height = hd;

@@ -11,6 +11,8 @@ void adam_update(Tensor& p, const Tensor& g, Tensor& m, Tensor& v, const AdamArg
         using T = decltype(tag);
         adam_update_cpu<T>(p.data<T>(), g.data<T>(), m.data<T>(), v.data<T>(), p.numel(), a);
     });
+    // The kernel writes through a raw pointer, bypassing copy_(), so the version is bumped here:
+    // a graph that saved p before the step then refuses to run backward with the new values.
     p.impl()->storage->bump_version();
 }
 

@@ -20,15 +20,20 @@ void adam_update_cpu(T* p, const T* g, T* m, T* v, int64_t n, const AdamArgs& a)
     const T bc2_sqrt = T(std::sqrt(a.bias_corr2));
     const bool decoupled = a.decoupled;
     const bool has_wd = a.weight_decay != 0.0;
+    // Threads only pay off on large tensors; biases and BatchNorm parameters run serially.
 #pragma omp parallel for schedule(static) if (n > 32768)
     for (int64_t i = 0; i < n; ++i) {
         T gi = g[i];
+        // Decay before the moments, in PyTorch's order. Adam's L2 term goes into the gradient (and
+        // so into m and v); AdamW's shrinks the weight directly and leaves the moments alone.
         if (has_wd) {
             if (decoupled) p[i] = p[i] * decay;
             else gi = gi + wd * p[i];
         }
         m[i] = beta1 * m[i] + one_m_beta1 * gi;
         v[i] = beta2 * v[i] + one_m_beta2 * gi * gi;
+        // eps is added to the bias-corrected sqrt(v) (Kingma & Ba Alg. 1, PyTorch's order), not to
+        // the raw sqrt(v) as in the paper's eps-hat variant, so eps means what it means in PyTorch.
         const T denom = std::sqrt(v[i]) / bc2_sqrt + eps;
         p[i] = p[i] - step_size * (m[i] / denom);
     }

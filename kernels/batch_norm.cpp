@@ -17,9 +17,14 @@ template <class T>
 void bn_finish_stats_cpu(const T* var, int64_t C, int64_t M, double momentum, double eps,
                          const T* mean, T* invstd, T* running_mean, T* running_var) {
     for (int64_t c = 0; c < C; ++c) invstd[c] = T(1) / std::sqrt(var[c] + T(eps));
+    // No running statistics to update (the layer does not track them).
     if (!running_mean) return;
+    // Normalisation uses the biased variance, but running_var stores the unbiased one
+    // (x M/(M-1)), as PyTorch does; imported weights and eval mode rely on that convention.
     const double unbias = double(M) / double(M - 1);
     for (int64_t c = 0; c < C; ++c) {
+        // PyTorch's momentum convention (new = (1-m) old + m batch, default 0.1; spec §4), which is
+        // the opposite of Keras's; the blend is formed in double and rounded once.
         running_mean[c] = T((1 - momentum) * running_mean[c] + momentum * mean[c]);
         running_var[c] = T((1 - momentum) * running_var[c] + momentum * var[c] * unbias);
     }
@@ -39,7 +44,10 @@ void bn_eval_stats_cpu(const T* running_mean, const T* running_var, int64_t C, d
 void batch_norm_fwd(const Tensor& x, const Tensor& gamma, const Tensor& beta, Tensor& running_mean,
                     Tensor& running_var, bool training, double momentum, double eps, Tensor& mean,
                     Tensor& invstd, Tensor& y, const BnReduce* reduce) {
+    // An empty BnReduce means this process's batch is the whole batch: no collective calls.
     const bool shared = training && reduce && *reduce;
+    // S folds every dimension after C ([B,C,N] points, [B,C,H,W] pixels, [B,C] rows); the max()
+    // keeps an empty batch from dividing by zero.
     const int64_t B = x.size(0), C = x.size(1), S = x.numel() / std::max<int64_t>(1, B * C);
     dispatch("batch_norm", {&x, &gamma, &beta, &running_mean, &running_var, &mean, &invstd, &y},
              [&](auto tag) {
@@ -83,6 +91,7 @@ void batch_norm_fwd(const Tensor& x, const Tensor& gamma, const Tensor& beta, Te
                                  data_or_null<T>(gamma), data_or_null<T>(beta), B, C, S,
                                  y.data<T>());
              });
+    // Running statistics were written through raw pointers: bump their versions by hand.
     if (training && running_mean.defined()) {
         running_mean.impl()->storage->bump_version();
         running_var.impl()->storage->bump_version();

@@ -11,6 +11,7 @@ namespace g2l::kernels {
 template <class T>
 void bn_stats_cpu(const T* x, int64_t B, int64_t C, int64_t S, T* mean, T* var) {
     const double M = double(B * S);
+    // One channel per iteration: its whole reduction runs on one thread in a fixed order.
 #pragma omp parallel for schedule(static) if (B * C * S > 16384)
     for (int64_t c = 0; c < C; ++c) {
         Lanes<double> s;
@@ -38,6 +39,8 @@ void bn_apply_cpu(const T* x, const T* mean, const T* invstd, const T* gamma, co
 #pragma omp parallel for schedule(static) if (B * C * S > 16384)
     for (int64_t bc = 0; bc < B * C; ++bc) {
         const int64_t c = bc % C;
+        // gamma, invstd, beta and mean folded into one scale and shift per channel, so the inner
+        // loop is a single multiply-add per element.
         const T scale = (gamma ? gamma[c] : T(1)) * invstd[c];
         const T shift = (beta ? beta[c] : T(0)) - mean[c] * scale;
         const T* xr = x + bc * S;
@@ -61,6 +64,7 @@ void bn_backward_cpu(const T* x, const T* dy, const T* mean, const T* invstd, co
             ldy.add(S, [dr](int64_t i) { return dr[i]; });
             ldyx.add(S, [dr, xr, m, is](int64_t i) { return dr[i] * (xr[i] - m) * is; });
         }
+        // These two sums are dbeta and dgamma (the caller passes those buffers) and also feed dx.
         const T sdy = ldy.total(), sdyx = ldyx.total();
         sum_dy[c] = sdy;
         sum_dy_xhat[c] = sdyx;
@@ -70,6 +74,8 @@ void bn_backward_cpu(const T* x, const T* dy, const T* mean, const T* invstd, co
             const T* xr = x + (b * C + c) * S;
             const T* dr = dy + (b * C + c) * S;
             T* out = dx + (b * C + c) * S;
+            // Training: mean and invstd are functions of x, which adds the two correction terms
+            // (Ioffe & Szegedy 2015, §3). Eval: the running statistics are constants, so dx = k dy.
             if (training) {
                 const T a = sdy / M, bq = sdyx / M;
                 for (int64_t i = 0; i < S; ++i) out[i] = k * (dr[i] - a - (xr[i] - m) * is * bq);
@@ -85,6 +91,8 @@ void bn_moment_cpu(const T* x, int64_t B, int64_t C, int64_t S, const double* sh
                    double* out) {
 #pragma omp parallel for schedule(static) if (B * C * S > 16384)
     for (int64_t c = 0; c < C; ++c) {
+        // First pass: plain sums (shift null); second pass: squared deviations from the global
+        // mean, the same two-pass scheme as bn_stats_cpu.
         const double m = shift ? shift[c] : 0.0;
         Lanes<double> s;
         for (int64_t b = 0; b < B; ++b) {

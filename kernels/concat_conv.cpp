@@ -12,6 +12,10 @@ namespace g2l::kernels {
 
 namespace {
 
+// Serves the G2L heads whose input is the 2256-channel point feature: x1 64, x2 128, pf 1024
+// per point, plus g 1024 and the one-hot 16 tiled over the points (spec §4.1-4.2). The global
+// blocks are equal for every point, so W_g g is one [B, Cout] product instead of N, and the
+// 2256 x N input is never built.
 template <class T>
 void concat_conv1x1_fwd_cpu(const std::vector<Tensor>& xs, const std::vector<Tensor>& gs,
                             const Tensor& w, const Tensor& b, Tensor& y) {
@@ -19,6 +23,7 @@ void concat_conv1x1_fwd_cpu(const std::vector<Tensor>& xs, const std::vector<Ten
     const T* pw = w.data<T>();
     T* py = y.data<T>();
     int64_t off = 0;
+    // beta = 0 for the first block overwrites y (it starts uninitialised); later blocks add.
     for (size_t i = 0; i < xs.size(); ++i) {  // y[b] (+)= W_i x_i[b]: [Cout, Ci] x [Ci, N]
         const int64_t Ci = xs[i].size(1);
         gemm_batched_cpu<T>(false, false, Cout, N, Ci, T(1), pw + off, Ctot, xs[i].data<T>(), N,
@@ -30,6 +35,7 @@ void concat_conv1x1_fwd_cpu(const std::vector<Tensor>& xs, const std::vector<Ten
     Tensor v = Tensor::zeros({B, Cout}, y.dtype(), y.device());
     T* pv = v.data<T>();
     if (b.defined()) add_bias_bcn_cpu<T>(pv, b.data<T>(), B, Cout, 1);
+    // w's columns hold the point blocks first, then the global ones: start at the first global.
     off = Ctot;
     for (const Tensor& g : gs) off -= g.size(1);
     for (const Tensor& g : gs) {
@@ -51,12 +57,14 @@ void concat_conv1x1_bwd_cpu(const std::vector<Tensor>& xs, const std::vector<Ten
     const T* pw = w.data<T>();
     const T* pdy = dy.data<T>();
     const bool want_w = dw && dw->defined(), want_b = db && db->defined();
+    // s feeds db, the global blocks' dW and every dg; skip the reduction when none is wanted.
     bool need_s = want_b || (G > 0 && want_w);
     for (size_t j = 0; j < G; ++j) need_s = need_s || dgs[j].defined();
     // s[b, o] = sum_n dy[b, o, n]: the gradient of the broadcast (global + bias) term.
     Tensor s;
     if (need_s) {
         s = Tensor::empty({B, Cout}, dy.dtype(), dy.device());
+        // Per sample: the broadcast term differs between samples, so s keeps its batch index.
         for (int64_t bi = 0; bi < B; ++bi)
             bias_grad_bcn_cpu<T>(pdy + bi * Cout * N, s.data<T>() + bi * Cout, 1, Cout, N, false);
     }
@@ -87,6 +95,7 @@ void concat_conv1x1_bwd_cpu(const std::vector<Tensor>& xs, const std::vector<Ten
 }
 
 // Every tensor of the call, for the device check of the dispatch.
+// dispatch() only sees the fixed arguments; the variable-length lists are checked here.
 void check_one_device(const char* op, const std::vector<Tensor>& ts, const Tensor& key) {
     for (const Tensor& t : ts)
         if (t.defined())

@@ -117,18 +117,24 @@ void weight_grad(const T* x, const T* dy, T* dw, const Conv2dGeom& g) {
     const int64_t nb = tile_cols(kBwdColBytes, g.groups * K, int64_t(sizeof(T)), P);
     const int64_t n_rb = ceil_div(cout_g, kRowBlock), n_cb = ceil_div(K, kColBlock);
     const int64_t n_tasks = g.groups * n_rb * n_cb;
+    // Zeroed because the tiles below accumulate (+=) over images and column slabs.
     std::fill(dw, dw + g.Cout * K, T(0));
+    // Direct 1x1: x already is the column matrix, so no im2col buffer is needed.
     std::vector<T> col(direct ? 0 : size_t(g.groups * K * nb));
     for (int64_t b = 0; b < g.B; ++b) {
         for (int64_t p0 = 0; p0 < P; p0 += nb) {
             const int64_t n = std::min(nb, P - p0);
             if (!direct) {
+                // im2col only copies (no arithmetic), one row per iteration: the split cannot
+                // change results.
 #pragma omp parallel for schedule(static)
                 for (int64_t rr = 0; rr < g.groups * K; ++rr) {
                     const T* xg = x + (b * g.Cin + (rr / K) * cin_g) * HW;
                     im2col_row(xg, g, rr % K, p0, n, col.data() + rr * n);
                 }
             }
+            // Dynamic scheduling is safe for determinism: a tile's arithmetic is the same whichever
+            // thread runs it, and no two tasks write the same dw element.
 #pragma omp parallel for schedule(dynamic, 1)
             for (int64_t t = 0; t < n_tasks; ++t) {
                 const int64_t gi = t / (n_rb * n_cb), r0 = (t / n_cb) % n_rb * kRowBlock;
@@ -155,6 +161,7 @@ void input_grad(const T* w, const T* dy, T* dx, const Conv2dGeom& g) {
     const bool direct = is_direct(g);
     const int64_t nb = direct ? P : tile_cols(kBwdColBytes, g.groups * K, int64_t(sizeof(T)), P);
     const int64_t khw = g.kh * g.kw;
+    // Zeroed because col2im adds overlapping windows into dx.
     std::fill(dx, dx + g.B * g.Cin * HW, T(0));
     std::vector<T> dcol(direct ? 0 : size_t(g.groups * K * nb));
     for (int64_t b = 0; b < g.B; ++b) {
@@ -172,6 +179,8 @@ void input_grad(const T* w, const T* dy, T* dx, const Conv2dGeom& g) {
                                   ? MMap<T>(dx + (b * g.Cin + gi * cin_g) * HW + p0 + s0, K, m,
                                             Stride(HW))
                                   : MMap<T>(dcol.data() + gi * K * n + s0, K, m, Stride(n));
+                // Assignment, not +=: dcol is rebuilt per slab, and in the direct case each dx
+                // pixel is exactly one column, visited once.
                 out.noalias() = wm.transpose() * dym;
             }
             if (direct) continue;
@@ -199,6 +208,7 @@ void conv2d_fwd_cpu(const T* x, const T* w, const T* bias, T* y, const Conv2dGeo
     const int64_t n_chunks = ceil_div(P, nc), n_tasks = g.B * g.groups * n_chunks;
 #pragma omp parallel
     {
+        // One im2col buffer per thread, reused across its tasks rather than allocated per task.
         std::vector<T> col(direct ? 0 : size_t(K * nc));
 #pragma omp for schedule(dynamic, 1)
         for (int64_t t = 0; t < n_tasks; ++t) {

@@ -6,6 +6,7 @@ namespace g2l::kernels::detail {
 const Tensor& dispatch_key(const char* op, std::initializer_list<const Tensor*> ts) {
     const Tensor* key = nullptr;
     for (const Tensor* t : ts) {
+        // Null or undefined entries are optional arguments (a missing bias, an unwanted gradient).
         if (!t || !t->defined()) continue;
         if (!key) {
             key = t;
@@ -14,6 +15,7 @@ const Tensor& dispatch_key(const char* op, std::initializer_list<const Tensor*> 
         G2L_CHECK(t->device() == key->device(), op, ": tensors must be on one device, got ",
                   key->desc(), " and ", t->desc());
     }
+    // The first defined tensor picks the device and dtype for the whole call.
     G2L_CHECK(key, op, ": no defined tensor to dispatch on");
     return *key;
 }

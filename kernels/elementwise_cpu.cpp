@@ -70,6 +70,8 @@ void binary_dispatch(const T* a, const T* b, T* y, const BroadcastPlan& p, F f) 
 
 }  // namespace
 
+// Which tensor each backward reads, so that the op keeps only that one alive. exp, sqrt,
+// sigmoid and tanh have derivatives that are cheapest in terms of their output y.
 bool unary_bwd_needs_x(UnaryOp op) {
     return op == UnaryOp::Log || op == UnaryOp::Square || op == UnaryOp::Pow ||
            op == UnaryOp::Abs || op == UnaryOp::Clamp;
@@ -125,9 +127,11 @@ void unary_bwd_cpu(UnaryOp op, const T* x, const T* y, const T* dy, T* dx, int64
         case UnaryOp::Square: map2(dy, x, dx, n, [](T g, T v) { return T(2) * v * g; }); return;
         case UnaryOp::Pow:
             map2(dy, x, dx, n,
+                 // x^0 is constant: its gradient is 0, not 0 * pow(0, -1) = NaN at x = 0.
                  [a](T g, T v) { return a == T(0) ? T(0) : g * a * std::pow(v, a - T(1)); });
             return;
         case UnaryOp::Abs:
+            // The subgradient at 0 is taken as 0 (sign(0) = 0), as PyTorch does.
             map2(dy, x, dx, n, [](T g, T v) { return v > T(0) ? g : (v < T(0) ? -g : T(0)); });
             return;
         case UnaryOp::Sigmoid:
@@ -135,6 +139,7 @@ void unary_bwd_cpu(UnaryOp op, const T* x, const T* y, const T* dy, T* dx, int64
             return;
         case UnaryOp::Tanh: map2(dy, y, dx, n, [](T g, T v) { return g * (T(1) - v * v); }); return;
         case UnaryOp::Clamp:
+            // The bounds themselves pass the gradient (inclusive), matching PyTorch's clamp.
             map2(dy, x, dx, n, [a, b](T g, T v) { return (v >= a && v <= b) ? g : T(0); });
             return;
     }
@@ -153,6 +158,7 @@ BroadcastPlan make_broadcast_plan(const std::vector<int64_t>& out_shape,
         for (size_t k = r; k-- > 0;) {
             const size_t lead = r - s.size();
             const int64_t n = k >= lead ? s[k - lead] : 1;
+            // NumPy broadcasting: each input dim is 1 or the output's (broadcast_shape checked it).
             G2L_ASSERT(n == 1 || n == out_shape[k]);
             st[k] = n == 1 ? 0 : acc;
             acc *= n;

@@ -63,6 +63,8 @@ inline vec vfma(vec a, vec b, vec c) { return _mm256_fmadd_ps(a, b, c); }
 using vec = __m128;
 constexpr int kVL = 4, kMR = 6;
 G2L_GEMM_X86_OPS(_mm)
+// No FMA on SSE2: the multiply and the add round separately, so an SSE2 build's results
+// differ in the last bits from an AVX2 / AVX-512 build's (each build is still deterministic).
 inline vec vfma(vec a, vec b, vec c) { return _mm_add_ps(_mm_mul_ps(a, b), c); }
 #else  // other targets (or G2L_GEMM_GENERIC, to test this path): GCC/Clang vector extensions
 typedef float vec __attribute__((vector_size(16)));
@@ -250,6 +252,7 @@ float* scratch(int which, size_t floats) {
     thread_local Buf bufs[2];
     Buf& b = bufs[which];
     if (b.n < floats) {
+        // aligned_alloc requires a size that is a multiple of the alignment.
         const size_t bytes = ((floats * sizeof(float) + 63) / 64) * 64;
         b.p.reset(static_cast<float*>(std::aligned_alloc(64, bytes)));
         G2L_CHECK(b.p != nullptr, "gemm_cpu: out of memory for a ", bytes, "-byte packing buffer");
@@ -356,11 +359,14 @@ void sgemm_packed(const Sgemm& g) {
     [[maybe_unused]] const bool parallel = M * N * K * g.batch > kParallelMacs;
 #pragma omp parallel if (parallel)
     {
+        // K blocks are the outer loop for every thread: each C element adds its K blocks in the
+        // same order whatever tile or thread computes it.
         for (int64_t k0 = 0; k0 < K; k0 += kKC) {
             const int64_t kc = std::min(kKC, K - k0);
             const bool first = k0 == 0 && g.overwrite, last = k0 + kc >= K;
             int64_t lo, hi;
             share(pm, &lo, &hi);
+            // Each thread packs its share of A's panels; the barrier below publishes them with B's.
             pack_panels<kMR>(g.trans_a, g.A, g.lda, M, lo, hi, k0, kc, pa);
             for (int64_t b0 = 0; b0 < g.batch; b0 += group) {
                 const int64_t nb = std::min(group, g.batch - b0);
@@ -373,7 +379,11 @@ void sgemm_packed(const Sgemm& g) {
                         pack_panels<kNR>(!g.trans_b, g.B + i * g.stride_b, g.ldb, N, q0, q1, k0,
                                          kc, pb + base * kNR * kc);
                 }
+                // Every packed panel must be complete before any thread's tiles read it.
 #pragma omp barrier
+                // Dynamic is safe: a tile's arithmetic does not depend on the thread that
+                // runs it. The implicit barrier at the end of this loop keeps the next
+                // group's or K block's packing from overwriting panels still being read.
 #pragma omp for schedule(dynamic)
                 for (int64_t job = 0; job < nb * tiles; ++job) {
                     const int64_t i = job / tiles, tile = job % tiles;
@@ -445,6 +455,7 @@ void gemm_batched_cpu(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t 
                       const GemmEpilogue* epilogue) {
     if (M == 0 || N == 0 || batch == 0) return;
     if constexpr (std::is_same_v<T, float>) {
+        // The packed kernel can only overwrite (beta 0) or add (beta 1); other betas scale C first.
         if (beta != 0.f && beta != 1.f)
             for (int64_t b = 0; b < batch; ++b)
                 MMap<T>(C + b * stride_c, M, N, Eigen::OuterStride<>(ldc)) *= beta;
@@ -459,6 +470,8 @@ void gemm_batched_cpu(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t 
         g.trans_a = trans_a, g.trans_b = trans_b, g.M = M, g.N = N, g.K = K, g.alpha = alpha;
         g.A = A, g.lda = lda, g.B = B, g.ldb = ldb, g.stride_b = stride_b;
         g.C = C, g.ldc = ldc, g.stride_c = stride_c, g.batch = batch;
+        // beta == 0 must not read C (BLAS convention): C is often fresh, uninitialised memory, and
+        // 0 * NaN would be NaN.
         g.overwrite = beta == 0.f, g.ep = epilogue;
         sgemm_packed(g);
     } else {
@@ -466,6 +479,7 @@ void gemm_batched_cpu(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t 
         for (int64_t b = 0; b < batch; ++b) {
             T* Cb = C + b * stride_c;
             MMap<T> c(Cb, M, N, Eigen::OuterStride<>(ldc));
+            // setZero, not c *= 0, for the same reason: C may hold uninitialised NaNs.
             if (beta == T(0)) c.setZero();
             else if (beta != T(1)) c *= beta;
             if (K > 0) dgemm_tiled(trans_a, trans_b, M, N, K, alpha, A, lda, B + b * stride_b, ldb, Cb, ldc);
@@ -486,6 +500,7 @@ void sgemm_prepacked(const Sgemm& g) {
     {
         int64_t lo, hi;
         share(pn, &lo, &hi);
+        // scratch() is thread_local, so each thread here gets its own B panel buffer.
         float* pb = scratch(1, size_t(std::min(tpn, hi - lo) * kNR * std::min(K, kKC)));
         for (int64_t q0 = lo; q0 < hi; q0 += tpn) {
             const int64_t q1 = std::min(hi, q0 + tpn), c0 = q0 * kNR, c1 = std::min(N, q1 * kNR);

@@ -19,6 +19,8 @@ void linear_fwd(const Tensor& x, const Tensor& w, const Tensor& b, Tensor& y) {
     const int64_t M = x.size(0), Cin = x.size(1), Cout = w.size(0);
     dispatch("linear", {&x, &w, &b, &y}, [&](auto tag) {
         using T = decltype(tag);
+        // w is stored [Cout, Cin] (PyTorch's layout, so imported weights load as they are); trans_b
+        // reads it as [Cin, Cout] without a transposed copy.
         gemm_cpu<T>(false, true, M, Cout, Cin, T(1), x.data<T>(), Cin, w.data<T>(), Cin, T(0),
                     y.data<T>(), Cout);
         // A [M, Cout] row is a [1, Cout, 1] bias pattern; M rows = "B" in the [B, C, N] kernel.
@@ -48,6 +50,7 @@ void conv1x1_fwd(const Tensor& x, const Tensor& w, const Tensor& b, Tensor& y) {
         // y[b] = w x[b] + bias: [Cout, Cin] x [Cin, N], w packed once for the batch; the float
         // GEMM adds the bias to each tile while it is in cache
         GemmEpilogue ep;
+        // Only the float GEMM has the epilogue; for double the bias is a separate pass below.
         const bool fused = std::is_same_v<T, float> && b.defined();
         if constexpr (std::is_same_v<T, float>) ep.bias = fused ? b.data<float>() : nullptr;
         gemm_batched_cpu<T>(false, false, Cout, N, Cin, T(1), w.data<T>(), Cin, x.data<T>(),
@@ -65,6 +68,7 @@ void conv1x1_bwd(const Tensor& x, const Tensor& w, const Tensor& dy, Tensor* dx,
             gemm_batched_cpu<T>(true, false, Cin, N, Cout, T(1), w.data<T>(), Cin, dy.data<T>(),
                                 N, Cout * N, T(0), dx->data<T>(), N, Cin * N, B);
         if (wanted(dw))  // dw = sum_b dy[b] x[b]^T : [Cout, N] x [N, Cin], fixed b order
+            // The first sample overwrites dw, later ones add, in sample order: a fixed sum order.
             for (int64_t bi = 0; bi < B; ++bi)
                 gemm_cpu<T>(false, true, Cout, Cin, N, T(1), dy.data<T>() + bi * Cout * N, N,
                             x.data<T>() + bi * Cin * N, N, bi ? T(1) : T(0), dw->data<T>(), Cin);

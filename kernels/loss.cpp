@@ -6,6 +6,8 @@
 
 namespace g2l::kernels {
 
+// num and den come back separately (in double) so the op divides once by the total target
+// weight, PyTorch's weighted mean, and reuses den for the backward scale.
 void nll_fwd(const Tensor& logp, const Tensor& target, const Tensor& weight, int64_t B,
              int64_t K, int64_t N, double* num, double* den) {
     dispatch("nll_loss", {&logp, &target, &weight}, [&](auto tag) {

@@ -22,6 +22,7 @@ Span window(int64_t o, int64_t k, int64_t s, int64_t p, int64_t n) {
 template <class T>
 void max_pool2d_fwd_cpu(const T* x, T* y, int32_t* argmax, const Pool2dGeom& g) {
     const int64_t planes = g.B * g.C, HW = g.H * g.W, P = g.Ho * g.Wo;
+    // One (b, c) plane per iteration: every output element is computed by one thread.
 #pragma omp parallel for schedule(static)
     for (int64_t pl = 0; pl < planes; ++pl) {
         const T* xp = x + pl * HW;
@@ -29,6 +30,8 @@ void max_pool2d_fwd_cpu(const T* x, T* y, int32_t* argmax, const Pool2dGeom& g) 
             const Span sh = window(oh, g.kh, g.sh, g.ph, g.H);
             for (int64_t ow = 0; ow < g.Wo; ++ow) {
                 const Span sw = window(ow, g.kw, g.sw, g.pw, g.W);
+                // Every window overlaps the image (the op enforces padding <= kernel / 2), so
+                // the window's first in-image element is a valid start.
                 int64_t best_i = sh.lo * g.W + sw.lo;
                 T best = xp[best_i];
                 // Strictly greater keeps the first of equal values; a NaN takes over once and
@@ -56,6 +59,8 @@ void max_pool2d_bwd_cpu(const T* dy, const int32_t* argmax, T* dx, const Pool2dG
     for (int64_t pl = 0; pl < planes; ++pl) {
         T* dxp = dx + pl * HW;
         std::fill(dxp, dxp + HW, T(0));
+        // Overlapping windows (stride < kernel) can pick the same input: within a plane the
+        // adds run in output order on one thread.
         for (int64_t q = 0; q < P; ++q) dxp[argmax[pl * P + q]] += dy[pl * P + q];
     }
 }
@@ -73,6 +78,8 @@ void avg_pool2d_fwd_cpu(const T* x, T* y, const Pool2dGeom& g, bool count_includ
                 T s = T(0);
                 for (int64_t ih = sh.lo; ih < sh.hi; ++ih)
                     for (int64_t iw = sw.lo; iw < sw.hi; ++iw) s += xp[ih * g.W + iw];
+                // count_include_pad (PyTorch's default) divides by the full window even where it
+                // overlaps the padding; otherwise by the in-image part, which is never empty.
                 const int64_t div =
                     count_include_pad ? g.kh * g.kw : (sh.hi - sh.lo) * (sw.hi - sw.lo);
                 y[pl * P + oh * g.Wo + ow] = s / T(div);
@@ -87,6 +94,7 @@ void avg_pool2d_bwd_cpu(const T* dy, T* dx, const Pool2dGeom& g, bool count_incl
 #pragma omp parallel for schedule(static)
     for (int64_t pl = 0; pl < planes; ++pl) {
         T* dxp = dx + pl * HW;
+        // Zeroed because overlapping windows add into the same inputs below.
         std::fill(dxp, dxp + HW, T(0));
         for (int64_t oh = 0; oh < g.Ho; ++oh) {
             const Span sh = window(oh, g.kh, g.sh, g.ph, g.H);

@@ -21,6 +21,7 @@ void max_pool_points_bwd(const Tensor& dy, const Tensor& arg, Tensor& dx) {
     dispatch("max_pool_points backward", {&dy, &arg, &dx}, [&](auto tag) {
         using T = decltype(tag);
         T* p = dx.data<T>();
+        // Zeroed here: the kernel only adds at each row's argmax, every other point gets 0.
         std::fill(p, p + dx.numel(), T(0));
         max_pool_points_bwd_cpu<T>(dy.data<T>(), arg.data<int32_t>(), R, N, p);
     });

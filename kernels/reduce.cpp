@@ -23,6 +23,7 @@ void sum_to_shape(const Tensor& x, Tensor& y) {
 
 void broadcast_dim(const Tensor& y, Tensor& x, int64_t outer, int64_t D, int64_t inner,
                    double scale) {
+    // Named after its only use: broadcast_dim is the adjoint of sum / mean.
     dispatch("sum backward", {&y, &x}, [&](auto tag) {
         using T = decltype(tag);
         broadcast_dim_cpu<T>(y.data<T>(), x.data<T>(), outer, D, inner, scale);

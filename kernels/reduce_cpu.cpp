@@ -29,7 +29,10 @@ void sum_dim_cpu(const T* x, T* y, int64_t outer, int64_t D, int64_t inner, doub
     }
     // Tasks = (o, chunk of D, block of inner). Each task writes its own partial sums; a second
     // pass adds the chunks of each output in chunk order.
+    // Chunking D lets a long reduction with few outputs (the mean of a whole loss tensor) use
+    // every thread, while the chunk bounds, and so the order of the sums, depend only on D.
     const int64_t n_chunk = ceil_div(D, kChunk), n_block = ceil_div(inner, kBlock);
+    // Partial sums stay in double until the final rounding to T.
     std::vector<double> part(size_t(outer * n_chunk * inner));
     const int64_t tasks = outer * n_chunk * n_block;
 #pragma omp parallel for schedule(static) if (outer * D * inner > kParallelMin)
@@ -77,6 +80,7 @@ void sum_to_shape_cpu(const T* x, const std::vector<int64_t>& x_shape, T* y,
     std::vector<T> cur_buf, next_buf;
     size_t k = 0;
     while (k < r) {
+        // Dim k is reduced where the target has 1 and x does not (a broadcast dimension).
         if (!(target[k] == 1 && cur[k] != 1)) {
             G2L_ASSERT(target[k] == cur[k]);
             ++k;
@@ -103,6 +107,7 @@ template <class T>
 void broadcast_dim_cpu(const T* y, T* x, int64_t outer, int64_t D, int64_t inner, double scale) {
     const T sc = T(scale);
 #pragma omp parallel for schedule(static) if (outer * D * inner > kParallelMin)
+    // The backward of sum / mean: every input along D receives the same scaled output gradient.
     for (int64_t od = 0; od < outer * D; ++od) {
         const T* src = y + (od / D) * inner;
         T* dst = x + od * inner;
@@ -118,6 +123,8 @@ void max_dim_fwd_cpu(const T* x, T* y, int32_t* arg, int64_t outer, int64_t D, i
     for (int64_t t = 0; t < tasks; ++t) {
         const int64_t o = t / n_block, i0 = (t % n_block) * kBlock;
         const int64_t w = std::min(inner, i0 + kBlock) - i0;
+        // A block of inner columns advances together, so each of the D rows is read contiguously
+        // rather than with stride `inner`.
         T best[kBlock];
         int32_t where[kBlock];
         const T* base = x + o * D * inner + i0;
@@ -147,6 +154,7 @@ void max_dim_bwd_cpu(const T* dy, const int32_t* arg, T* dx, int64_t outer, int6
 #pragma omp parallel for schedule(static) if (outer * D * inner > kParallelMin)
     for (int64_t o = 0; o < outer; ++o) {
         T* base = dx + o * D * inner;
+        // Exactly one winner per output, so the winner's slot is assigned, not accumulated.
         std::fill(base, base + D * inner, T(0));
         for (int64_t i = 0; i < inner; ++i)
             base[int64_t(arg[o * inner + i]) * inner + i] = dy[o * inner + i];
@@ -165,6 +173,7 @@ void norm_dim_fwd_cpu(const T* x, T* y, int64_t outer, int64_t D, int64_t inner,
             const T* row = x + (o * D + d) * inner + i0;
             for (int64_t i = 0; i < w; ++i) acc[i] += double(row[i]) * double(row[i]);
         }
+        // eps inside the sqrt keeps y > 0, so the backward x / y stays finite for a zero vector.
         for (int64_t i = 0; i < w; ++i) y[o * inner + i0 + i] = T(std::sqrt(acc[i] + eps));
     }
 }
@@ -176,6 +185,7 @@ void norm_dim_bwd_cpu(const T* x, const T* y, const T* dy, T* dx, int64_t outer,
 #pragma omp parallel for schedule(static) if (n > kParallelMin)
     for (int64_t k = 0; k < n; ++k) {
         const int64_t i = k % inner, o = k / (D * inner);
+        // d||x||/dx = x / ||x||, using the stored y (eps included) as the forward used it.
         dx[k] = dy[o * inner + i] * x[k] / y[o * inner + i];
     }
 }

@@ -14,6 +14,8 @@ void relu_fwd_cpu(const T* x, T* y, int64_t n) {
 template <class T>
 void relu_bwd_cpu(const T* y, const T* dy, T* dx, int64_t n) {
 #pragma omp parallel for schedule(static) if (n > 32768)
+    // Masked by y, not x: y > 0 exactly where x > 0, so the op keeps only its output alive. The
+    // derivative at 0 is taken as 0, as in PyTorch.
     for (int64_t i = 0; i < n; ++i) dx[i] = y[i] > T(0) ? dy[i] : T(0);
 }
 

@@ -8,6 +8,8 @@ namespace g2l::kernels {
 
 void copy_slab(const Tensor& src, int64_t src_D, int64_t src_off, Tensor& dst, int64_t dst_D,
                int64_t dst_off, int64_t outer, int64_t len, int64_t inner) {
+    // Layout copies also move i32 tensors (indices, labels); only the gradient kernel below is
+    // float-only.
     dispatch<Types::FloatOrI32>(
         "copy_slab", {&src, &dst},
         [&](auto tag) {

@@ -63,6 +63,7 @@ void index_select_fwd_cpu(const T* x, const int32_t* idx, int64_t L, T* y, int64
 #pragma omp parallel for schedule(static) if (outer * L * inner > kParallelMin)
     for (int64_t ol = 0; ol < outer * L; ++ol) {
         const int64_t o = ol / L, l = ol % L;
+        // idx is trusted: nn::index_select checked every id against D on the host.
         const T* s = x + (o * D + idx[l]) * inner;
         std::copy(s, s + inner, y + ol * inner);
     }
@@ -72,6 +73,8 @@ template <class T>
 void index_select_bwd_cpu(const T* dy, const int32_t* idx, int64_t L, T* dx, int64_t outer,
                           int64_t D, int64_t inner) {
     const int64_t n_block = (inner + kBlock - 1) / kBlock, tasks = outer * n_block;
+    // A task owns (o, block of inner) for every l: an index that repeats adds into its dx row in
+    // l order on one thread, so there are no races and the sum order is fixed.
 #pragma omp parallel for schedule(static) if (outer * (L + D) * inner > kParallelMin)
     for (int64_t t = 0; t < tasks; ++t) {
         const int64_t o = t / n_block, i0 = (t % n_block) * kBlock;
@@ -97,6 +100,7 @@ void index_select_bwd_cpu(const T* dy, const int32_t* idx, int64_t L, T* dx, int
                                           int64_t);
 G2L_SHAPE_INST(float)
 G2L_SHAPE_INST(double)
+// i32 too: concat, slice and permute also move index and label tensors.
 G2L_SHAPE_INST(int32_t)
 #undef G2L_SHAPE_INST
 

@@ -24,6 +24,7 @@ void softmax_fwd_cpu(const T* x, T* y, int64_t outer, int64_t D, int64_t inner, 
         T* yb = y + o * D * inner + i0;
         T m[kBlock];
         double s[kBlock] = {};
+        // Subtracting the column max keeps every exp() <= 1: no overflow for large logits.
         for (int64_t i = 0; i < w; ++i) m[i] = xb[i];
         for (int64_t d = 1; d < D; ++d)
             for (int64_t i = 0; i < w; ++i) m[i] = std::max(m[i], xb[d * inner + i]);
@@ -38,6 +39,7 @@ void softmax_fwd_cpu(const T* x, T* y, int64_t outer, int64_t D, int64_t inner, 
             }
         }
         if (log) {
+            // log_softmax as (x - m) - log(sum): never the log of a probability that rounded to 0.
             T lse[kBlock];
             for (int64_t i = 0; i < w; ++i) lse[i] = T(std::log(s[i]));
             for (int64_t d = 0; d < D; ++d)
@@ -45,6 +47,7 @@ void softmax_fwd_cpu(const T* x, T* y, int64_t outer, int64_t D, int64_t inner, 
                     yb[d * inner + i] = (xb[d * inner + i] - m[i]) - lse[i];
         } else {
             T inv[kBlock];
+            // One division per column, then multiplies.
             for (int64_t i = 0; i < w; ++i) inv[i] = T(1.0 / s[i]);
             for (int64_t d = 0; d < D; ++d)
                 for (int64_t i = 0; i < w; ++i) yb[d * inner + i] *= inv[i];
@@ -62,6 +65,9 @@ void softmax_bwd_cpu(const T* y, const T* dy, T* dx, int64_t outer, int64_t D, i
         const int64_t w = std::min(inner, i0 + kBlock) - i0;
         const int64_t base = o * D * inner + i0;
         double s[kBlock] = {};
+        // softmax:     dx = y (dy - sum_d dy y)
+        // log_softmax: dx = dy - exp(y) sum_d dy      (exp(y) is the softmax)
+        // Both only need y, so the op keeps its output, not x.
         for (int64_t d = 0; d < D; ++d) {
             const int64_t r = base + d * inner;
             for (int64_t i = 0; i < w; ++i)

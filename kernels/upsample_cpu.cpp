@@ -23,10 +23,12 @@ Tap<T> tap(int64_t o, int64_t n, int64_t no, bool align_corners) {
         src = scale * T(o);
     } else {
         const T scale = T(n) / T(no);
+        // Half-pixel centres; negative source coordinates (first outputs) clamp to 0, as PyTorch.
         src = std::max(scale * (T(o) + T(0.5)) - T(0.5), T(0));
     }
     const int64_t i0 = std::min(int64_t(src), n - 1);
     const T f = src - T(i0);
+    // At the last row / column both taps point at i0, so nothing past the edge is read.
     return {i0, i0 < n - 1 ? i0 + 1 : i0, T(1) - f, f};
 }
 
@@ -50,6 +52,7 @@ template <class T>
 void upsample_nearest2d_bwd_cpu(const T* dy, T* dx, int64_t planes, int64_t H, int64_t W,
                                 int64_t s) {
     const int64_t Wo = W * s, HWo = H * s * Wo;
+    // One plane per thread: the scatter-adds of a plane run in output order on one thread.
 #pragma omp parallel for schedule(static)
     for (int64_t pl = 0; pl < planes; ++pl) {
         T* dxp = dx + pl * H * W;

@@ -8,8 +8,11 @@
 namespace g2l::nn {
 
 void Module::check_new_name(const std::string& name) const {
+    // Dots separate the levels of state_dict keys ("seg.conv1.weight"), so a dotted member name
+    // would make keys ambiguous.
     G2L_CHECK(!name.empty() && name.find('.') == std::string::npos,
               "Module: bad member name '", name, "' (non-empty, no dots)");
+    // Parameters, buffers and children share one key space in state_dict.
     for (const auto& p : params_) G2L_CHECK(p.first != name, "Module: duplicate name '", name, "'");
     for (const auto& p : buffers_) G2L_CHECK(p.first != name, "Module: duplicate name '", name, "'");
     for (const auto& p : children_) G2L_CHECK(p.first != name, "Module: duplicate name '", name, "'");
@@ -37,6 +40,7 @@ void Module::add_child(const std::string& name, std::shared_ptr<Module> m) {
 }
 
 void Module::collect(const std::string& prefix, bool params, NamedTensors& out) const {
+    // Vectors, not maps: names come out in registration order, the same on every run.
     for (const auto& [n, t] : params ? params_ : buffers_) out.emplace_back(prefix + n, t);
     for (const auto& [n, c] : children_) c->collect(prefix + n + ".", params, out);
 }
@@ -62,6 +66,7 @@ std::vector<Tensor> Module::parameters() const {
 std::map<std::string, Tensor> Module::state_dict() const {
     std::map<std::string, Tensor> sd;
     for (auto& p : named_parameters()) sd.emplace(p.first, p.second);
+    // Buffers (BatchNorm running statistics) are not trained but eval mode needs them.
     for (auto& p : named_buffers()) sd.emplace(p.first, p.second);
     return sd;
 }
@@ -77,13 +82,18 @@ void Module::load_state_dict(const std::map<std::string, Tensor>& sd, bool stric
     }
     for (const auto& [name, t] : sd)
         if (!mine.count(name)) unexpected += " " + name;
+    // A wrong shape or dtype is always an error; only missing/unexpected keys are tolerated, and
+    // only when !strict (partial loads).
     G2L_CHECK(mismatched.empty() && (!strict || (missing.empty() && unexpected.empty())),
               "load_state_dict:", missing.empty() ? "" : " missing:" + missing,
               unexpected.empty() ? "" : " unexpected:" + unexpected,
               mismatched.empty() ? "" : " shape/dtype mismatch:" + mismatched);
+    // Checked in full above, so the copy below is all-or-nothing.
     autograd::NoGradGuard no_grad;
     for (auto& [name, t] : mine) {
         auto it = sd.find(name);
+        // copy_ into the existing storage instead of swapping handles: the optimiser and any other
+        // holder of the parameter see the loaded values.
         if (it != sd.end()) t.copy_(it->second);
     }
 }
@@ -105,6 +115,8 @@ void Module::zero_grad() {
 
 Tensor uniform_init(const Shape& shape, int64_t fan_in, Rng& rng, DType dtype) {
     G2L_CHECK(fan_in > 0, "uniform_init: fan_in must be > 0, got ", fan_in);
+    // U(-1/sqrt(fan_in), 1/sqrt(fan_in)) is PyTorch's default for Linear/Conv weights and biases,
+    // the initialisation the reference G2L-Net was trained with.
     const double bound = 1.0 / std::sqrt(double(fan_in));
     return Tensor::rand(shape, rng, -bound, bound, dtype);
 }

@@ -13,6 +13,8 @@ namespace g2l::nn {
 
 namespace {
 
+// Key prefixes of the optimiser state inside a training checkpoint, which also holds the
+// model's tensors; load_state only judges keys under "adam.".
 const std::string kM = "adam.m.", kV = "adam.v.", kStep = "adam.step.";
 
 void check_hyper(const AdamOptions& o) {
@@ -54,11 +56,13 @@ Adam::Adam(std::vector<ParamGroup> groups, AdamOptions options)
             check_param(g, name, p);
             G2L_CHECK(names.insert(name).second, "Adam: duplicate parameter name '", name,
                       "' (group '", g.name, "')");
+            // The same tensor listed twice would be stepped twice per step, with two moment sets.
             for (const auto& [other, q] : seen) {
                 G2L_CHECK(!p.shares_storage_with(q), "Adam: parameters '", other, "' and '",
                           name, "' share storage (the same tensor listed twice)");
             }
             seen.emplace_back(name, p);
+            // m and v start at zero; the bias corrections in step() undo that start-up bias.
             slots.push_back({Tensor::zeros(p.shape(), p.dtype(), p.device()),
                              Tensor::zeros(p.shape(), p.dtype(), p.device()), 0});
         }
@@ -67,6 +71,7 @@ Adam::Adam(std::vector<ParamGroup> groups, AdamOptions options)
 }
 
 void Adam::step() {
+    // The in-place parameter updates must not be recorded into any graph.
     autograd::NoGradGuard no_grad;
     for (size_t gi = 0; gi < groups_.size(); ++gi) {
         const ParamGroup& group = groups_[gi];
@@ -79,13 +84,19 @@ void Adam::step() {
                       "Adam::step: gradient ", grad.desc(), " of parameter '", name,
                       "' does not match the parameter ", param.desc());
             Slot& s = slots_[gi][pi];
+            // Steps are counted per parameter (as PyTorch's state['step']): a parameter skipped
+            // for lack of a gradient keeps its own bias-correction count.
             ++s.t;
             kernels::AdamArgs a;
+            // Per-group multipliers: the released G2L script trains each sub-network at its own
+            // rate (spec §6: seg x1, T-net x10, EVF x1, R_res x20, Rotation_pre x30); set_lr sets
+            // only the base.
             a.lr = opt_.lr * group.lr_mult;
             a.beta1 = opt_.beta1;
             a.beta2 = opt_.beta2;
             a.eps = opt_.eps;
             a.weight_decay = group.weight_decay;
+            // Bias corrections 1 - beta^t in double on the host (Adam, Kingma & Ba 2015, Alg. 1).
             a.bias_corr1 = 1.0 - std::pow(opt_.beta1, double(s.t));
             a.bias_corr2 = 1.0 - std::pow(opt_.beta2, double(s.t));
             a.decoupled = opt_.decoupled;
@@ -114,8 +125,10 @@ std::vector<std::pair<std::string, Tensor>> Adam::state_tensors() const {
         for (size_t pi = 0; pi < groups_[gi].params.size(); ++pi) {
             const std::string& name = groups_[gi].params[pi].first;
             const Slot& s = slots_[gi][pi];
+            // Clones: the caller may hold the snapshot while later steps keep updating m and v.
             out.emplace_back(kM + name, s.m.clone());
             out.emplace_back(kV + name, s.v.clone());
+            // Stored as an i32 tensor: checkpoints hold tensors of f32, f64 or i32 only.
             out.emplace_back(kStep + name, Tensor::from_vector<int32_t>({int32_t(s.t)}, {1}));
         }
     }
@@ -123,6 +136,7 @@ std::vector<std::pair<std::string, Tensor>> Adam::state_tensors() const {
 }
 
 void Adam::load_state(const std::map<std::string, Tensor>& state, int64_t step) {
+    // Collect every mismatch and throw once, so one failed resume lists all that is wrong.
     std::ostringstream problems;
     int n_problems = 0;
     auto problem = [&](const std::string& text) {
@@ -149,11 +163,14 @@ void Adam::load_state(const std::map<std::string, Tensor>& state, int64_t step) 
         }
     }
     for (const auto& kv : state) {
+        // Keys outside "adam." belong to the rest of the checkpoint (model weights): ignored.
         if (kv.first.rfind("adam.", 0) == 0 && !expected.count(kv.first)) {
             problem(cat("'", kv.first, "' matches no parameter of this optimiser"));
         }
     }
     if (step < 0) problem(cat("global step must be >= 0, got ", step));
+    // Only when every key is present with the right shape and dtype: state.at() and item() would
+    // throw or misread otherwise.
     for (size_t gi = 0; gi < groups_.size() && n_problems == 0; ++gi) {
         for (const auto& [name, p] : groups_[gi].params) {
             const int32_t t = state.at(kStep + name).item<int32_t>();
@@ -161,6 +178,7 @@ void Adam::load_state(const std::map<std::string, Tensor>& state, int64_t step) 
         }
     }
     G2L_CHECK(n_problems == 0, "Adam::load_state: ", n_problems, " problem(s):", problems.str());
+    // Nothing is written until all checks passed, so a failed load leaves the optimiser as it was.
     for (size_t gi = 0; gi < groups_.size(); ++gi) {
         for (size_t pi = 0; pi < groups_[gi].params.size(); ++pi) {
             const std::string& name = groups_[gi].params[pi].first;

@@ -22,6 +22,8 @@ constexpr double kPi = 3.14159265358979323846;
 // A random rotation from a uniformly random unit quaternion.
 void random_rotation(Rng& rng, double R[9]) {
     double q[4], n = 0;
+    // A normalised 4-D Gaussian is uniform on the unit quaternions, hence on SO(3); the loop only
+    // guards the (practically impossible) zero vector.
     do {
         n = 0;
         for (double& v : q) { v = rng.normal(); n += v * v; }
@@ -44,6 +46,8 @@ public:
         out = register_module("out", std::make_shared<nn::Linear>(64, classes, rng));
     }
     Tensor forward(const Tensor& x) {
+        // The PointNet recipe G2L's networks build on: a per-point shared MLP, a max over
+        // points (so the point order does not matter), then a per-cloud MLP.
         return out->forward(head->forward(nn::max_pool_points(feat->forward(x))));
     }
     std::shared_ptr<nn::SharedMlp> feat;
@@ -59,6 +63,7 @@ Tensor make_toy_cloud(int label, int points, double noise, uint64_t seed) {
     Rng rng(seed);
     double R[9];
     random_rotation(rng, R);
+    // Random scale and rotation: the class must be read from the shape, not from size or pose.
     const double scale = rng.uniform(0.6, 1.4);
     Tensor x = Tensor::empty({3, points});
     float* p = x.data<float>();
@@ -72,6 +77,8 @@ Tensor make_toy_cloud(int label, int points, double noise, uint64_t seed) {
             } while (n < 1e-12);
             for (double& c : v) c /= std::sqrt(n);
         } else if (label == 1) {  // cube surface: a random face, uniform on it
+            // All faces have the same area, so a uniform face and a uniform point on it are
+            // uniform on the whole surface.
             const int face = int(rng.below(6));
             v[0] = rng.uniform(-1, 1); v[1] = rng.uniform(-1, 1); v[2] = rng.uniform(-1, 1);
             v[face / 2] = (face % 2) ? 1.0 : -1.0;
@@ -90,6 +97,8 @@ Tensor make_toy_cloud(int label, int points, double noise, uint64_t seed) {
 ToyResult train_toy_pointnet(const ToyConfig& cfg, const std::function<void(int, double)>& progress) {
     G2L_CHECK(cfg.num_classes == 2 || cfg.num_classes == 3, "toy: num_classes must be 2 or 3, got ",
               cfg.num_classes);
+    // batch > 1: the head's BatchNorm sees one value per channel and sample, and training
+    // BatchNorm needs more than one.
     G2L_CHECK(cfg.batch > 1 && cfg.steps > 0 && cfg.points > 0 && cfg.test_samples > 0,
               "toy: batch > 1, steps, points and test_samples > 0 required");
     Rng rng(cfg.seed);
@@ -99,7 +108,10 @@ ToyResult train_toy_pointnet(const ToyConfig& cfg, const std::function<void(int,
         x = Tensor::empty({n, 3, cfg.points});
         y = Tensor::empty({n}, DType::I32);
         for (int i = 0; i < n; ++i) {
+            // Labels cycle through the classes: every batch is balanced.
             const int label = int((base_seed + uint64_t(i)) % uint64_t(cfg.num_classes));
+            // One seed per sample from (run seed, sample index): batches are reproducible
+            // and need no shared generator state.
             const Tensor c = make_toy_cloud(label, cfg.points, cfg.noise_mm,
                                             cfg.seed * 1000003u + base_seed + uint64_t(i));
             std::memcpy(x.data<float>() + i * 3 * cfg.points, c.data(), c.nbytes());
@@ -129,9 +141,12 @@ ToyResult train_toy_pointnet(const ToyConfig& cfg, const std::function<void(int,
     res.first_loss = first;
     res.final_loss = last;
 
+    // Eval mode: BatchNorm uses its running statistics, as at inference.
     net.eval();
     autograd::NoGradGuard no_grad;
     Tensor x, y;
+    // Test indices start far past any training index, so the test clouds are never seen in
+    // training.
     make_batch(cfg.test_samples, 1u << 30, x, y);
     const Tensor pred = nn::argmax(net.forward(x), 1);
     int correct = 0;

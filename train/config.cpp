@@ -359,31 +359,10 @@ data::SceneConfig source_scene(const SourceConfig& src, const std::string& where
     return data::parse_scene_config(src.scene, where, key_path);
 }
 
-void validate(const TrainConfig& c, const std::string& where) {
-    try {
-        parse_device(c.device);
-    } catch (const Error& e) {
-        G2L_CHECK(false, where, ": 'device' must be \"cpu\", \"cuda\" or \"cuda:N\", got \"",
-                  c.device, "\" (", e.what(), ")");
-    }
-    G2L_CHECK(c.threads >= 0, where, ": 'threads' must be >= 0 (0 = all), got ", c.threads);
-    G2L_CHECK(!c.name.empty(), where, ": 'name' must not be empty");
-    G2L_CHECK(!c.run_dir.empty(), where, ": 'run_dir' must not be empty");
+namespace {
 
-    const std::vector<int>& ids = c.data.object_ids;
-    G2L_CHECK(!ids.empty(), where, ": 'data.object_ids' must list at least one object");
-    for (size_t i = 0; i < ids.size(); ++i) {
-        G2L_CHECK(ids[i] > 0, where, ": 'data.object_ids[", i, "]' must be > 0, got ", ids[i]);
-        G2L_CHECK(std::count(ids.begin(), ids.end(), ids[i]) == 1, where,
-                  ": 'data.object_ids' lists object ", ids[i], " twice");
-    }
-    G2L_CHECK(c.model.num_classes >= int64_t(ids.size()), where, ": 'model.num_classes' = ",
-              c.model.num_classes, " is smaller than the ", ids.size(),
-              " objects of data.object_ids");
-    G2L_CHECK(!c.data.train.empty(), where, ": 'data.train' must list at least one source");
-    check_sources(c, c.data.train, "train", where);
-    check_sources(c, c.data.val, "val", where);
-
+// The sampling and augmentation keys (the crop and what it feeds the networks).
+void check_sampling(const TrainConfig& c, const std::string& where) {
     const SamplingConfig& s = c.sampling;
     G2L_CHECK(s.seg_points > 0, where, ": 'sampling.seg_points' must be > 0, got ",
               s.seg_points);
@@ -412,7 +391,10 @@ void validate(const TrainConfig& c, const std::string& where) {
               a.rot_deg);
     G2L_CHECK(finite_in(a.point_noise_mm, 0, 1e6), where,
               ": 'augment.point_noise_mm' must be >= 0, got ", a.point_noise_mm);
+}
 
+// The model and loss keys.
+void check_model_and_losses(const TrainConfig& c, const std::string& where) {
     const ModelConfig& m = c.model;
     G2L_CHECK(std::find(kKeypoints.begin(), kKeypoints.end(), m.keypoints) != kKeypoints.end(),
               where, ": 'model.keypoints' must be one of ", list_str(kKeypoints, true),
@@ -436,7 +418,10 @@ void validate(const TrainConfig& c, const std::string& where) {
     G2L_CHECK(l.t_loss == "mse" || l.t_loss == "smooth_l1", where,
               ": 'loss.t_loss' must be one of ", list_str(kTLosses, true), ", got \"", l.t_loss,
               "\"");
+}
 
+// The optimizer, schedule and loop keys.
+void check_optimization(const TrainConfig& c, const std::string& where) {
     const OptimConfig& o = c.optim;
     G2L_CHECK(o.lr > 0 && std::isfinite(o.lr), where, ": 'optim.lr' must be > 0, got ", o.lr);
     G2L_CHECK(finite_in(o.beta1, 0, 1) && o.beta1 < 1, where,
@@ -483,6 +468,37 @@ void validate(const TrainConfig& c, const std::string& where) {
     G2L_CHECK(c.loss.rot_only_epochs >= 0 && c.loss.rot_only_epochs < c.train.epochs, where,
               ": 'loss.rot_only_epochs' must be in [0, train.epochs), got ", c.loss.rot_only_epochs);
     G2L_CHECK(t.log_every > 0, where, ": 'train.log_every' must be > 0, got ", t.log_every);
+}
+
+}  // namespace
+
+void validate(const TrainConfig& c, const std::string& where) {
+    try {
+        parse_device(c.device);
+    } catch (const Error& e) {
+        G2L_CHECK(false, where, ": 'device' must be \"cpu\", \"cuda\" or \"cuda:N\", got \"",
+                  c.device, "\" (", e.what(), ")");
+    }
+    G2L_CHECK(c.threads >= 0, where, ": 'threads' must be >= 0 (0 = all), got ", c.threads);
+    G2L_CHECK(!c.name.empty(), where, ": 'name' must not be empty");
+    G2L_CHECK(!c.run_dir.empty(), where, ": 'run_dir' must not be empty");
+
+    const std::vector<int>& ids = c.data.object_ids;
+    G2L_CHECK(!ids.empty(), where, ": 'data.object_ids' must list at least one object");
+    for (size_t i = 0; i < ids.size(); ++i) {
+        G2L_CHECK(ids[i] > 0, where, ": 'data.object_ids[", i, "]' must be > 0, got ", ids[i]);
+        G2L_CHECK(std::count(ids.begin(), ids.end(), ids[i]) == 1, where,
+                  ": 'data.object_ids' lists object ", ids[i], " twice");
+    }
+    G2L_CHECK(c.model.num_classes >= int64_t(ids.size()), where, ": 'model.num_classes' = ",
+              c.model.num_classes, " is smaller than the ", ids.size(),
+              " objects of data.object_ids");
+    G2L_CHECK(!c.data.train.empty(), where, ": 'data.train' must list at least one source");
+    check_sources(c, c.data.train, "train", where);
+    check_sources(c, c.data.val, "val", where);
+    check_sampling(c, where);
+    check_model_and_losses(c, where);
+    check_optimization(c, where);
 }
 
 std::string apply_sets_to_json(const std::string& json_text, const std::vector<std::string>& sets,

@@ -28,9 +28,11 @@ std::shared_ptr<int> lock_run_dir(const std::string& dir) {
     const std::string path = (fs::path(dir) / "run.lock").string();
     const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     G2L_CHECK(fd >= 0, "cannot open the run directory's lock '", path, "': ", std::strerror(errno));
+    // Non-blocking: a second writer is refused at once instead of waiting behind the first.
     if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
         const int err = errno;
         char buf[128] = {0};
+        // The holder wrote its pid into the file; read it so the error can name the process.
         const ssize_t n = ::pread(fd, buf, sizeof buf - 1, 0);
         ::close(fd);
         std::string who = n > 0 ? std::string(buf, size_t(n)) : std::string("unknown process");
@@ -42,6 +44,7 @@ std::shared_ptr<int> lock_run_dir(const std::string& dir) {
                   std::strerror(err));
     }
     const std::string me = "pid " + std::to_string(::getpid()) + "\n";
+    // Truncate first: the file may still hold a previous holder's (longer) text.
     const bool wrote = ::ftruncate(fd, 0) == 0 &&
                        ::pwrite(fd, me.data(), me.size(), 0) == ssize_t(me.size());
     if (!wrote) {
@@ -49,6 +52,8 @@ std::shared_ptr<int> lock_run_dir(const std::string& dir) {
         ::close(fd);
         G2L_CHECK(false, "cannot write the run directory's lock '", path, "': ", std::strerror(err));
     }
+    // Closing the descriptor is what releases the lock, so the deleter does exactly that, once,
+    // when the last owner goes.
     return std::shared_ptr<int>(new int(fd), [](int* p) {
         ::close(*p);  // releases the lock
         delete p;
@@ -77,6 +82,8 @@ RunDir::RunDir(std::string dir, bool resume, bool force, std::vector<std::string
               ec ? ec.message() : std::string("not a directory"));
     lock_ = lock_run_dir(dir_);  // before touching anything another writer may be writing
     if (resume) {
+        // AtomicFile temporaries (<name>.tmp.<pid>) of a killed writer. Removing them is safe only
+        // now that we hold the lock: no live writer can be in the middle of one.
         for (const auto& e : fs::directory_iterator(dir_, ec)) {
             const std::string name = e.path().filename().string();
             if (name.find(".g2l.tmp.") != std::string::npos ||
@@ -85,6 +92,7 @@ RunDir::RunDir(std::string dir, bool resume, bool force, std::vector<std::string
                 fs::remove(e.path(), ec);
         }
     }
+    // Fail now, not at the first checkpoint hours into the run.
     const fs::path probe = fs::path(dir_) / ".write_test";
     {
         std::ofstream t(probe);
@@ -100,6 +108,7 @@ void RunDir::begin(const std::string& config_json) const {
     if (!writer_) return;
     write_file_atomic((fs::path(dir_) / "config.json").string(), config_json);
     if (resumed_) return;
+    // A new run (possibly --force over an old one) starts with empty logs.
     for (const std::string& l : logs_) {
         std::ofstream t(path(l), std::ios::trunc);
         G2L_CHECK(t.good(), "cannot write '", path(l), "': ", std::strerror(errno));
@@ -129,15 +138,18 @@ void RunDir::trim_log(const std::string& log, const std::string& key, int64_t ma
     in.close();
     std::string text;
     for (const auto& l : keep) text += l + "\n";
+    // Atomic: a kill during the rewrite leaves the old log, never a half-written one.
     write_file_atomic(path(log), text);
 }
 
 void RunDir::append(const std::string& log, const nlohmann::json& record) const {
     G2L_CHECK(std::find(logs_.begin(), logs_.end(), log) != logs_.end(), "RunDir::append: '", log,
               "' is not a log of this run");
+    // The check above runs on every rank, so a misnamed log fails everywhere, not only on rank 0.
     if (!writer_) return;
     std::ofstream f(path(log), std::ios::app);
     f << record.dump() << "\n";
+    // Flushed per record: a killed run's log is complete up to its last step.
     f.flush();
     G2L_CHECK(f.good(), "cannot write '", path(log), "': ", std::strerror(errno));
 }
@@ -145,6 +157,7 @@ void RunDir::append(const std::string& log, const nlohmann::json& record) const 
 std::vector<std::pair<std::string, Tensor>> checkpoint_tensors(
     const std::map<std::string, Tensor>& model_state, const nn::Adam& adam) {
     std::vector<std::pair<std::string, Tensor>> out;
+    // The prefix keeps model tensors apart from Adam's "adam.*" state in the one checkpoint.
     for (const auto& [name, t] : model_state) out.emplace_back("model." + name, t);
     for (auto& p : adam.state_tensors()) out.push_back(p);
     return out;

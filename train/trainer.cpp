@@ -303,13 +303,17 @@ public:
     }
 
     nn::Adam& optimizer() override { return adam_; }
-    double lr(const LoopState& s) const override {
-        if (!cfg_.train.time_schedule) return schedule_->lr_at(s.epoch);
-        // The epoch the clock says the run is in, when the time limit will end it early.
+    // The epoch the schedule and the warm-up phases follow: the loop's, or with
+    // train.time_schedule the epoch the clock says the run is in when the time limit will end
+    // it early — so a short run still decays its learning rate and leaves its warm-up phases
+    // at the same share of the run (rot_only_epochs / epochs of the time).
+    int schedule_epoch(const LoopState& s) const {
+        if (!cfg_.train.time_schedule) return s.epoch;
         const int E = cfg_.train.epochs;
         const double p = time_fitted_progress(s, double(s.epoch) / E, cfg_.train.time_limit_min);
-        return schedule_->lr_at(std::min(E - 1, std::max(s.epoch, int(p * E))));
+        return std::min(E - 1, std::max(s.epoch, int(p * E)));
     }
+    double lr(const LoopState& s) const override { return schedule_->lr_at(schedule_epoch(s)); }
 
     int64_t begin_epoch(const LoopState& s) override {
         if (ahead_.valid()) ahead_.wait();  // a stopped epoch's prefetch reads the old sources
@@ -347,8 +351,9 @@ public:
         adam_.zero_grad();
         // The warm-up phases (docs/config.md, loss.rot_only_epochs): the rotation networks
         // alone first, then on ground-truth object points, then on the segmentation's.
-        so_.rot_gt_points = s.epoch < cfg_.loss.rot_only_epochs + cfg_.loss.rot_gt_points_epochs;
-        so_.rot_only = s.epoch < cfg_.loss.rot_only_epochs;
+        const int e = schedule_epoch(s);
+        so_.rot_gt_points = e < cfg_.loss.rot_only_epochs + cfg_.loss.rot_gt_points_epochs;
+        so_.rot_only = e < cfg_.loss.rot_only_epochs;
         // BatchNorm and dropout see the global batch through this hook (forward and backward);
         // each process's loss is weighted by its share of the batch, so the summed gradients
         // are those of the global batch's mean loss.

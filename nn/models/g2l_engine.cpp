@@ -327,6 +327,8 @@ struct PoseEngine::Impl {
                  std::vector<PoseEstimate>* out);
     void translate(const std::vector<PoseQuery>& qs);
     void rotate(const std::vector<PoseQuery>& qs, std::vector<PoseEstimate>* out);
+    void keypoint_poses(const std::vector<PoseQuery>& qs, const float* kp, const float* resid,
+                        std::vector<PoseEstimate>* out) const;
 };
 
 PoseEngine::PoseEngine(const G2LNet& net) : impl_(std::make_unique<Impl>()) {
@@ -526,7 +528,6 @@ void PoseEngine::Impl::translate(const std::vector<PoseQuery>& qs) {
 // vectors, block B's keypoints, Kabsch, block C's residual, Kabsch again.
 void PoseEngine::Impl::rotate(const std::vector<PoseQuery>& qs, std::vector<PoseEstimate>* out) {
     const G2LConfig& cfg = this->cfg;
-    const int K = cfg.num_keypoints;
     std::vector<int>& act = active;
     if (!act.empty()) {
         const int64_t N = set_segments(qs, [&](int q) { return int64_t(work[size_t(q)].obj.size()); });
@@ -585,46 +586,53 @@ void PoseEngine::Impl::rotate(const std::vector<PoseQuery>& qs, std::vector<Pose
                 class_rows(rot_out, cls[s], vec_a.data(), kp + int64_t(s) * K3);
             }
         }
-        // Kabsch on block B's keypoints, corrected by block C's residual and Kabsch again
-        // (as estimate_pose).
-        for (size_t s = 0; s < act.size(); ++s) {
-            const int q = act[s];
-            const Work& w = work[size_t(q)];
-            const auto& mk = *qs[size_t(q)].keypoints;
-            auto kabsch = [&](auto&& q_of) {
-                Eigen::Vector3d pm = Eigen::Vector3d::Zero(), qm = Eigen::Vector3d::Zero();
-                for (int k = 0; k < K; ++k) {
-                    pm += mk[size_t(k)].cast<double>();
-                    qm += q_of(k);
-                }
-                pm /= K;
-                qm /= K;
-                Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
-                for (int k = 0; k < K; ++k)
-                    H += (mk[size_t(k)].cast<double>() - pm) * (q_of(k) - qm).transpose();
-                return geom::rotation_from_covariance(H);
-            };
-            const float* kq = kp + int64_t(s) * K3;
-            Eigen::Matrix3d R = kabsch([&](int k) {
-                return Eigen::Vector3d(double(kq[3 * k] * w.out_mul), double(kq[3 * k + 1] * w.out_mul),
-                                       double(kq[3 * k + 2] * w.out_mul));
-            });
-            if (rre) {
-                const float* rq = resid + int64_t(s) * K3;
-                const Eigen::Matrix3d R1 = R;
-                R = kabsch([&](int k) {
-                    const Eigen::Vector3d rp = R1 * mk[size_t(k)].cast<double>();
-                    return Eigen::Vector3d(double(float(rp[0]) + rq[3 * k] * w.out_mul),
-                                           double(float(rp[1]) + rq[3 * k + 1] * w.out_mul),
-                                           double(float(rp[2]) + rq[3 * k + 2] * w.out_mul));
-                });
+        keypoint_poses(qs, kp, resid, out);
+    }
+}
+
+// Kabsch on block B's keypoints (predicted in the canonical frame, scaled back to mm), then,
+// with block C, on those keypoints corrected by its residual (as estimate_pose).
+void PoseEngine::Impl::keypoint_poses(const std::vector<PoseQuery>& qs, const float* kp,
+                                      const float* resid, std::vector<PoseEstimate>* out) const {
+    const int K = cfg.num_keypoints;
+    const std::vector<int>& act = active;
+    for (size_t s = 0; s < act.size(); ++s) {
+        const int q = act[s];
+        const Work& w = work[size_t(q)];
+        const auto& mk = *qs[size_t(q)].keypoints;
+        auto kabsch = [&](auto&& q_of) {
+            Eigen::Vector3d pm = Eigen::Vector3d::Zero(), qm = Eigen::Vector3d::Zero();
+            for (int k = 0; k < K; ++k) {
+                pm += mk[size_t(k)].cast<double>();
+                qm += q_of(k);
             }
-            PoseEstimate& e = (*out)[size_t(q)];
-            e.pose.R = R;
-            e.pose.t = w.T.cast<double>();
-            e.ok = true;
-            e.status = "ok";
+            pm /= K;
+            qm /= K;
+            Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+            for (int k = 0; k < K; ++k)
+                H += (mk[size_t(k)].cast<double>() - pm) * (q_of(k) - qm).transpose();
+            return geom::rotation_from_covariance(H);
+        };
+        const float* kq = kp + int64_t(s) * K3;
+        Eigen::Matrix3d R = kabsch([&](int k) {
+            return Eigen::Vector3d(double(kq[3 * k] * w.out_mul), double(kq[3 * k + 1] * w.out_mul),
+                                   double(kq[3 * k + 2] * w.out_mul));
+        });
+        if (rre) {
+            const float* rq = resid + int64_t(s) * K3;
+            const Eigen::Matrix3d R1 = R;
+            R = kabsch([&](int k) {
+                const Eigen::Vector3d rp = R1 * mk[size_t(k)].cast<double>();
+                return Eigen::Vector3d(double(float(rp[0]) + rq[3 * k] * w.out_mul),
+                                       double(float(rp[1]) + rq[3 * k + 1] * w.out_mul),
+                                       double(float(rp[2]) + rq[3 * k + 2] * w.out_mul));
+            });
         }
+        PoseEstimate& e = (*out)[size_t(q)];
+        e.pose.R = R;
+        e.pose.t = w.T.cast<double>();
+        e.ok = true;
+        e.status = "ok";
     }
 }
 

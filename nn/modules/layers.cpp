@@ -11,6 +11,7 @@ namespace g2l::nn {
 
 Linear::Linear(int64_t in, int64_t out, Rng& rng, bool use_bias, DType dtype) {
     G2L_CHECK(in > 0 && out > 0, "Linear: sizes must be > 0, got in ", in, " out ", out);
+    // [out, in] as PyTorch stores it, so converted weights load without transposing.
     weight = register_parameter("weight", uniform_init({out, in}, in, rng, dtype));
     if (use_bias) bias = register_parameter("bias", uniform_init({out}, in, rng, dtype));
 }
@@ -33,6 +34,7 @@ Conv2d::Conv2d(int64_t in, int64_t out, std::array<int64_t, 2> kernel, Rng& rng,
                   in % groups == 0 && out % groups == 0,
               "Conv2d: bad sizes in ", in, " out ", out, " kernel ", kernel[0], "x", kernel[1],
               " groups ", groups);
+    // PyTorch's fan_in for a grouped convolution: the inputs one output actually sees.
     const int64_t fan_in = in / groups * kernel[0] * kernel[1];
     weight = register_parameter(
         "weight", uniform_init({out, in / groups, kernel[0], kernel[1]}, fan_in, rng, dtype));
@@ -49,10 +51,13 @@ BatchNorm::BatchNorm(int64_t channels, double eps_, double momentum_, DType dtyp
     : eps(eps_), momentum(momentum_) {
     G2L_CHECK(channels > 0, "BatchNorm: channels must be > 0, got ", channels);
     // host: modules are built on the CPU (as every layer's uniform_init), then moved
+    // gamma 1, beta 0, running mean 0 and variance 1: PyTorch's BatchNorm initial state.
     weight = register_parameter("weight", Tensor::ones({channels}, dtype));  // host
     bias = register_parameter("bias", Tensor::zeros({channels}, dtype));  // host
     running_mean = register_buffer("running_mean", Tensor::zeros({channels}, dtype));  // host
     running_var = register_buffer("running_var", Tensor::ones({channels}, dtype));  // host
+    // PyTorch's BatchNorm has this buffer too; keeping it makes the key sets of converted state
+    // dicts match under strict loading.
     num_batches_tracked =
         register_buffer("num_batches_tracked", Tensor::zeros({1}, DType::I32));  // host
 }

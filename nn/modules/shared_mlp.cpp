@@ -12,6 +12,8 @@ void check_widths(const char* what, const std::vector<int64_t>& w) {
 }
 }  // namespace
 
+// PointNet's shared MLP: 1x1 convolutions applied to every point with the same weights, e.g.
+// G2L's backbone 3 -> 64 -> 64 -> 64 -> 128 -> 1024 (spec §4.1).
 SharedMlp::SharedMlp(const std::vector<int64_t>& widths, Rng& rng, bool batch_norm,
                      bool relu_last)
     : widths_(widths), relu_last_(relu_last) {
@@ -32,12 +34,18 @@ Tensor SharedMlp::forward(const Tensor& x, std::vector<Tensor>* taps) {
     for (size_t i = 0; i < convs_.size(); ++i) {
         h = convs_[i]->forward(h);
         if (!bns_.empty()) h = bns_[i]->forward(h);
+        // Some G2L layers end without ReLU (backbone conv5, the T-net's 256 -> 512;
+        // spec §4.1, §4.3), hence relu_last.
         if (i + 1 < convs_.size() || relu_last_) h = relu(h);
+        // Intermediate outputs: the backbone concatenates x1 (conv2), x2 (conv4) and pf
+        // (conv5) into the per-point feature (spec §4.1).
         if (taps) taps->push_back(h);
     }
     return h;
 }
 
+// The per-sample counterpart for the heads after the max over points (e.g. the T-net's
+// 528 -> 256 -> 128, spec §4.3).
 Mlp::Mlp(const std::vector<int64_t>& widths, Rng& rng, bool batch_norm, bool relu_last)
     : widths_(widths), relu_last_(relu_last) {
     check_widths("Mlp", widths);

@@ -32,6 +32,8 @@ Tensor batch_norm(const Tensor& x, const Tensor& gamma, const Tensor& beta, Tens
     // backward pass sums with the processes of the forward pass.
     const DataParallel* dp = data_parallel();
     const kernels::BnReduce reduce = training && dp ? dp->sum : kernels::BnReduce();
+    // One value per channel has zero variance and no unbiased estimate (M - 1 = 0); PyTorch
+    // refuses it too. With a shared batch the kernel checks the global count instead.
     G2L_CHECK(!training || reduce || B * S > 1, "batch_norm: training needs more than one value per "
                                       "channel, got x ", x.desc());
     G2L_CHECK(eps > 0 && momentum >= 0 && momentum <= 1, "batch_norm: bad eps ", eps,

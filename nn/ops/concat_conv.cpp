@@ -62,7 +62,9 @@ Tensor concat_conv1x1(const std::vector<Tensor>& point_feats,
     inputs.insert(inputs.end(), point_feats.begin(), point_feats.end());
     inputs.insert(inputs.end(), global_feats.begin(), global_feats.end());
     inputs.push_back(w);
+    // b is pushed even when undefined so that its slot is always P + G + 1.
     inputs.push_back(b);
+    // At inference skip building the closure, which copies both feature lists.
     if (!autograd::needs_grad(inputs)) return y;
     return autograd::record(kOp, y, inputs, [xs = point_feats, gs = global_feats, w](
                                                  const Tensor& dy, autograd::Grads& g) {

@@ -45,6 +45,7 @@ kernels::Conv2dGeom conv2d_geom(const Tensor& x, const Tensor& w, const Tensor& 
     G2L_CHECK(ekh <= hp && ekw <= wp, "conv2d: kernel ", g.kh, "x", g.kw, " (dilation ", g.dh,
               "x", g.dw, ", extent ", ekh, "x", ekw, ") is larger than the padded input ", hp,
               "x", wp, " (x ", x.shape(), ", padding ", g.ph, "x", g.pw, ")");
+    // Floor division, as PyTorch: trailing rows / columns that no full stride reaches are dropped.
     g.Ho = (hp - ekh) / g.sh + 1;
     g.Wo = (wp - ekw) / g.sw + 1;
     return g;

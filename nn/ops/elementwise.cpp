@@ -24,6 +24,8 @@ Tensor binary_raw(BinaryOp op, const Tensor& a, const Tensor& b, const Shape& ou
 
 // The gradient of a broadcast input: g summed down to `shape` (g itself when nothing to sum).
 Tensor sum_to(const Tensor& g, const Shape& shape) {
+    // No copy when nothing was broadcast: the gradient is passed on by reference (Grads clones
+    // before it ever accumulates into an aliased tensor).
     if (g.shape() == shape) return g;
     Tensor r = Tensor::empty(shape, g.dtype(), g.device());
     kernels::sum_to_shape(g, r);
@@ -82,6 +84,8 @@ Tensor binary(const char* name, BinaryOp op, const Tensor& a, const Tensor& b) {
 Tensor unary(const char* name, UnaryOp op, const Tensor& x, double p0 = 0, double p1 = 0) {
     detail::check_float_input(name, "x", x);
     const Tensor y = unary_raw(op, x, p0, p1);
+    // Keep x or y alive only when the derivative reads it, so a chain of ops does not pin every
+    // intermediate activation until backward.
     const Tensor xd = kernels::unary_bwd_needs_x(op) ? x.detach() : Tensor();
     const Tensor yd = kernels::unary_bwd_needs_y(op) ? y.detach() : Tensor();
     return autograd::record(
@@ -125,6 +129,7 @@ Tensor log(const Tensor& x) { return unary("log", UnaryOp::Log, x); }
 Tensor sqrt(const Tensor& x) { return unary("sqrt", UnaryOp::Sqrt, x); }
 Tensor square(const Tensor& x) { return unary("square", UnaryOp::Square, x); }
 Tensor pow_scalar(const Tensor& x, double p) {
+    // A non-finite exponent would produce only inf/NaN values and gradients.
     G2L_CHECK(std::isfinite(p), "pow_scalar: exponent p must be finite, got ", p);
     return unary("pow_scalar", UnaryOp::Pow, x, p);
 }
@@ -149,10 +154,13 @@ Tensor operator-(const Tensor& x) { return nn::neg(x); }
 Tensor operator+(const Tensor& x, double s) { return nn::add_scalar(x, s); }
 Tensor operator-(const Tensor& x, double s) { return nn::add_scalar(x, -s); }
 Tensor operator*(const Tensor& x, double s) { return nn::mul_scalar(x, s); }
+// A multiplication by the reciprocal (one unary op); it may differ from a true division by s
+// in the last bit.
 Tensor operator/(const Tensor& x, double s) { return nn::mul_scalar(x, 1.0 / s); }
 Tensor operator+(double s, const Tensor& x) { return nn::add_scalar(x, s); }
 Tensor operator-(double s, const Tensor& x) { return nn::add_scalar(nn::neg(x), s); }
 Tensor operator*(double s, const Tensor& x) { return nn::mul_scalar(x, s); }
+// s / x as s * x^-1, reusing the differentiable pow rather than adding a kernel.
 Tensor operator/(double s, const Tensor& x) { return nn::mul_scalar(nn::pow_scalar(x, -1.0), s); }
 
 }  // namespace g2l

@@ -47,6 +47,8 @@ Tensor linear(const Tensor& x, const Tensor& w, const Tensor& b) {
     });
 }
 
+// The shared per-point MLP layer: every G2L-Net layer is a 1x1 convolution over the points
+// (spec §4), one [Cout, Cin] x [Cin, N] GEMM per sample.
 Tensor conv1x1(const Tensor& x, const Tensor& w, const Tensor& b) {
     require_rank("conv1x1", "x", x, 3, "[B, Cin, N]");
     check_weight("conv1x1", x, x.size(1), w, b);

@@ -39,6 +39,8 @@ NllLayout nll_layout(const Tensor& logp, const Tensor& target) {
     }
     G2L_CHECK(l.B * l.N > 0, "nll_loss: no elements to average (logp ", logp.desc(), ")");
     // The ids are checked on the host (a copy when the target lives on another device).
+    // The kernels use the ids as indices into logp, so an out-of-range id would read and write out
+    // of bounds; checking every id here turns that into a clear error.
     const Tensor th = target.device().is_cpu() ? target : target.to(Device::cpu());
     const int32_t* t = th.data<int32_t>();
     for (int64_t i = 0; i < l.B * l.N; ++i) {
@@ -87,6 +89,7 @@ Tensor nll_loss(const Tensor& logp, const Tensor& target, const Tensor& weight) 
     }
     double num = 0, den = 0;
     kernels::nll_fwd(logp, target, weight, l.B, l.K, l.N, &num, &den);
+    // den is 0 when every target's class has weight 0; the mean would then be 0/0.
     G2L_CHECK(den != 0 && std::isfinite(den), "nll_loss: total weight of the targets is ", den,
               " (the mean is undefined)");
     Tensor y = Tensor::scalar(num / den, logp.dtype()).to(logp.device());
@@ -95,6 +98,7 @@ Tensor nll_loss(const Tensor& logp, const Tensor& target, const Tensor& weight) 
                                                                    autograd::Grads& g) {
         if (!g.needs(0)) return;  // weight gets no gradient; target is i32
         Tensor dlogp = Tensor::empty({l.B, l.K, l.N}, dy.dtype(), dy.device());
+        // scale = dy / den: the gradient of the weighted mean.
         kernels::nll_bwd(target, weight, l.B, l.K, l.N, dy.item<double>() / den, dlogp);
         // [M, K] inputs were handled as [M, K, 1]: same memory, so a reshape view suffices.
         g.add(0, dlogp.reshape(shape));
@@ -106,11 +110,14 @@ Tensor cross_entropy(const Tensor& logits, const Tensor& target, const Tensor& w
     detail::check_float_input("cross_entropy", "logits", logits);
     G2L_CHECK(logits.dim() == 2 || logits.dim() == 3,
               "cross_entropy: expected logits as [M, K] or [B, K, N], got ", logits.desc());
+    // log_softmax + NLL, as G2L's Seg_3D head and its loss (spec §4.2); log_softmax is the
+    // stable form (no log of a rounded-to-zero probability).
     return nll_loss(log_softmax(logits, 1), target, weight);
 }
 
 Tensor mse_loss(const Tensor& a, const Tensor& b) {
     check_pair("mse_loss", a, b);
+    // nn.MSELoss with mean reduction: the G2L losses for T, EVF vectors and keypoints (spec §6).
     return mean(square(sub(a, b)));
 }
 
@@ -122,6 +129,7 @@ Tensor smooth_l1_loss(const Tensor& a, const Tensor& b, double beta) {
 }
 
 Tensor argmax(const Tensor& x, int64_t dim) {
+    // Indices carry no gradient: no node is recorded for the max it comes from.
     autograd::NoGradGuard no_grad;
     return max(x, dim, false).indices;
 }

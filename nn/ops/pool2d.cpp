@@ -20,6 +20,8 @@ kernels::Pool2dGeom pool2d_geom(const char* op, const Tensor& x, std::array<int6
               ", ", kernel[1], ")");
     G2L_CHECK(stride[0] >= 1 && stride[1] >= 1, op, ": stride must be >= 1, got (", stride[0],
               ", ", stride[1], ")");
+    // PyTorch's rule; it also guarantees every window overlaps the image, which the kernels rely
+    // on (a max window starts from an in-image element, an average never divides by 0).
     G2L_CHECK(padding[0] >= 0 && padding[1] >= 0 && 2 * padding[0] <= kernel[0] &&
                   2 * padding[1] <= kernel[1],
               op, ": padding must be in [0, kernel / 2], got padding (", padding[0], ", ",
@@ -32,6 +34,7 @@ kernels::Pool2dGeom pool2d_geom(const char* op, const Tensor& x, std::array<int6
     G2L_CHECK(g.kh <= hp && g.kw <= wp, op, ": kernel ", g.kh, "x", g.kw,
               " is larger than the padded input ", hp, "x", wp, " (x ", x.shape(), ", padding ",
               g.ph, "x", g.pw, ")");
+    // argmax stores flat in-plane offsets as i32.
     G2L_CHECK(int64_t(g.H) * g.W <= std::numeric_limits<int32_t>::max(), op, ": plane ", g.H, "x",
               g.W, " too large for i32 indices");
     g.Ho = (hp - g.kh) / g.sh + 1;
@@ -57,6 +60,8 @@ Tensor max_pool2d(const Tensor& x, std::array<int64_t, 2> kernel, std::array<int
                   std::array<int64_t, 2> padding) {
     const kernels::Pool2dGeom g = pool2d_geom("max_pool2d", x, kernel, stride, padding);
     Tensor y = Tensor::empty({g.B, g.C, g.Ho, g.Wo}, x.dtype(), x.device());
+    // Backward routes each output's gradient to the input the forward chose, so the choice is
+    // kept rather than recomputed.
     Tensor arg = Tensor::empty({g.B, g.C, g.Ho, g.Wo}, DType::I32, x.device());
     kernels::max_pool2d_fwd(x, y, arg, g);
     return autograd::record("max_pool2d", y, {x}, [arg, g](const Tensor& dy,

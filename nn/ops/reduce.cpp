@@ -39,6 +39,8 @@ Tensor sum_impl(const char* op, const Tensor& x, const detail::DimSplit& p, cons
 
 Tensor sum(const Tensor& x) {
     detail::check_float_input("sum", "x", x);
+    // A full reduction is the [1, numel, 1] case of the same kernel, so sum() and sum(dim) share
+    // one summation order.
     return sum_impl("sum", x, {1, x.numel(), 1}, {}, 1.0);
 }
 
@@ -71,6 +73,7 @@ MaxResult max(const Tensor& x, int64_t dim, bool keepdim) {
     const detail::DimSplit p = detail::split_at(x.shape(), d);
     const Shape out_shape = reduced_shape(x.shape(), d, keepdim);
     Tensor y = Tensor::empty(out_shape, x.dtype(), x.device());
+    // The winners are kept for backward (only they get gradient) and also returned to the caller.
     Tensor arg = Tensor::empty(out_shape, DType::I32, x.device());
     kernels::max_dim_fwd(x, y, arg, p.outer, p.D, p.inner);
     y = autograd::record("max", y, {x},
@@ -91,6 +94,8 @@ Tensor norm(const Tensor& x, int64_t dim, bool keepdim, double eps) {
     kernels::norm_dim_fwd(x, y, p.outer, p.D, p.inner, eps);
     return autograd::record(
         "norm", y, {x},
+        // Backward reads y (with its eps) rather than recomputing the norm: the same values as the
+        // forward used.
         [p, xd = x.detach(), yd = y.detach()](const Tensor& dy, autograd::Grads& g) {
             Tensor dx = Tensor::empty(xd.shape(), dy.dtype(), dy.device());
             kernels::norm_dim_bwd(xd, yd, dy, dx, p.outer, p.D, p.inner);
@@ -99,6 +104,7 @@ Tensor norm(const Tensor& x, int64_t dim, bool keepdim, double eps) {
 }
 
 Tensor normalize(const Tensor& x, int64_t dim, double eps) {
+    // keepdim so the norm broadcasts back over `dim`; eps > 0 keeps a zero vector finite.
     return div(x, norm(x, dim, /*keepdim=*/true, eps));
 }
 

@@ -74,6 +74,7 @@ Tensor concat(const std::vector<Tensor>& xs, int64_t dim) {
                                 for (const Tensor& x : xs) s.push_back(x.shape());
                                 return s;
                             }()](const Tensor& dy, autograd::Grads& g) {
+        // The adjoint of concat: each input gets its own slab of dy back.
         for (size_t i = 0; i < xs_shapes.size(); ++i) {
             if (!g.needs(i)) continue;
             const int64_t len = xs_shapes[i][size_t(d)];
@@ -102,6 +103,8 @@ Tensor slice(const Tensor& x, int64_t dim, int64_t start, int64_t end) {
     check_input("slice", x);
     const int64_t d = detail::wrap_dim("slice", dim, x.shape());
     const int64_t D = x.size(d);
+    // Python slicing: negative indices count from the end and out-of-range bounds clamp, so an
+    // empty slice is a result, not an error.
     auto clamp_index = [D](int64_t i) {
         if (i < 0) i += D;
         return std::min(std::max(i, int64_t(0)), D);
@@ -112,6 +115,7 @@ Tensor slice(const Tensor& x, int64_t dim, int64_t start, int64_t end) {
     const detail::DimSplit p = detail::split_at(x.shape(), d);
     Tensor y = Tensor::empty(out_shape, x.dtype(), x.device());
     copy_slab(x, D, s, y, len, 0, p.outer, len, p.inner);
+    // Backward starts from zeros: rows outside the slice never reached the output.
     return autograd::record("slice", y, {x},
                             [p, s, len, xs = x.shape()](const Tensor& dy, autograd::Grads& g) {
                                 Tensor dx = Tensor::zeros(xs, dy.dtype(), dy.device());
@@ -146,6 +150,7 @@ Tensor transpose(const Tensor& x, int64_t d0, int64_t d1) {
     std::vector<int64_t> perm(static_cast<size_t>(x.dim()));
     for (size_t k = 0; k < perm.size(); ++k) perm[k] = int64_t(k);
     std::swap(perm[size_t(a)], perm[size_t(b)]);
+    // Tensors are always dense (tensor.h), so a transpose is a permuted copy, not a view.
     return permute(x, perm);
 }
 
@@ -162,6 +167,7 @@ Tensor permute(const Tensor& x, const std::vector<int64_t>& dims) {
         inv[size_t(perm[size_t(k)])] = k;
     }
     const Tensor y = permute_raw(x, perm);
+    // The adjoint of a permutation is the inverse permutation.
     return autograd::record("permute", y, {x}, [inv](const Tensor& dy, autograd::Grads& g) {
         g.add(0, permute_raw(dy, inv));
     });
@@ -178,6 +184,8 @@ Tensor index_select(const Tensor& x, int64_t dim, const Tensor& idx) {
     // The indices are checked on the host (a copy when idx lives on another device).
     const Tensor ih = idx.device().is_cpu() ? idx : idx.to(Device::cpu());
     const int32_t* pi = ih.data<int32_t>();
+    // The kernels use the ids as raw offsets: an out-of-range id would read or write out of
+    // bounds, so every id is checked here.
     for (int64_t l = 0; l < L; ++l)
         G2L_CHECK(pi[l] >= 0 && pi[l] < p.D, "index_select: idx[", l, "] = ", pi[l],
                   " is out of range [0, ", p.D, ") for dim ", dim, " of ", x.desc());
@@ -185,6 +193,8 @@ Tensor index_select(const Tensor& x, int64_t dim, const Tensor& idx) {
     out_shape[size_t(d)] = L;
     Tensor y = Tensor::empty(out_shape, x.dtype(), x.device());
     kernels::index_select_fwd(x, idx, y, p.outer, p.D, p.inner);
+    // idx is recorded as an input (it gets no gradient) so that an in-place change to it before
+    // backward is caught by the version check.
     return autograd::record("index_select", y, {x, idx},
                             [p, L, idx, xs = x.shape()](const Tensor& dy, autograd::Grads& g) {
                                 if (!g.needs(0)) return;
@@ -199,6 +209,7 @@ Tensor unsqueeze(const Tensor& x, int64_t dim) {
     const int64_t d = wrap_insert_dim("unsqueeze", dim, x.shape());
     Shape s = x.shape();
     s.insert(s.begin() + d, 1);
+    // A view: inserting or removing a size-1 dimension never moves data.
     return x.reshape(s);
 }
 

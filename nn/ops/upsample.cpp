@@ -15,6 +15,7 @@ Tensor upsample_nearest2d(const Tensor& x, int64_t scale) {
     const int64_t B = x.size(0), C = x.size(1), H = x.size(2), W = x.size(3);
     Tensor y = Tensor::empty({B, C, H * scale, W * scale}, x.dtype(), x.device());
     kernels::upsample_nearest2d_fwd(x, y, scale);
+    // Backward needs only sizes and the scale, so no tensor is kept alive by the closure.
     return autograd::record("upsample_nearest2d", y, {x}, [=](const Tensor& dy,
                                                               autograd::Grads& g) {
         Tensor dx = Tensor::empty({B, C, H, W}, dy.dtype(), dy.device());

@@ -662,3 +662,22 @@ TEST_CASE("scene bins: configs/scenes/ycbv_bin.json reads and round-trips", "[da
     CHECK(back.kinds_min == c.kinds_min);
     CHECK(back.kinds_max == c.kinds_max);
 }
+
+TEST_CASE("mesh_file_ids: BOP names keep their ids, other names take the smallest free ones, "
+          "clashes are named", "[data]") {
+    CHECK(mesh_file_ids({"/m/obj_000005.ply", "/m/bracket.ply", "/m/obj_000001.obj",
+                         "/m/Housing v2.OBJ", "/m/obj_12.ply"}) ==
+          std::vector<int>{5, 2, 1, 3, 12});
+    CHECK(mesh_file_ids({"a.ply", "b.ply"}) == std::vector<int>{1, 2});
+    CHECK(mesh_file_ids({}).empty());
+    // Not BOP names: no digits, letters after them, a prefix.
+    CHECK(mesh_file_ids({"obj_.ply", "obj_12a.ply", "myobj_000003.ply"}) ==
+          std::vector<int>{1, 2, 3});
+    REQUIRE_THROWS_WITH(mesh_file_ids({"x/obj_000008.ply", "y/obj_000008.obj"}),
+                        Contains("'x/obj_000008.ply' and 'y/obj_000008.obj' both give object 8"));
+    const std::string root = testing::temp_dir("obj_names");
+    write_obj_names(root, {{1, "bracket"}, {14, "Housing v2"}});
+    CHECK(testing::read_file(root + "/obj_names.json") ==
+          "{\n  \"1\": \"bracket\",\n  \"14\": \"Housing v2\"\n}\n");
+    REQUIRE_THROWS_WITH(write_obj_names(root + "/no/such/dir", {{1, "a"}}), Contains("obj_names.json"));
+}

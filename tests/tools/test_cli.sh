@@ -47,6 +47,22 @@ has "must be >= 0, got -5"
 
 expect 1 "$B/apps/g2l_train" --config "$T/missing.json"
 has "missing.json"
+# --objects (your own meshes to a detector and a pose model): its usage rules, a folder that
+# is no mesh folder, and a used --out refused before any training.
+expect 2 "$B/apps/g2l_train" --objects "$T"
+has "--objects DIR needs --out RUN"
+expect 2 "$B/apps/g2l_train" --objects "$T" --out "$T/o" --config x.json
+has "takes no --config"
+expect 2 "$B/apps/g2l_train" --config x.json --camera c.json
+has "--camera is an option of --objects"
+expect 2 "$B/apps/g2l_train" --objects "$T" --out "$T/o" --minutes 0
+has "--minutes"
+mkdir -p "$T/nomesh"
+expect 1 "$B/apps/g2l_train" --objects "$T/nomesh" --out "$T/o2" --minutes 1
+has "holds no .ply or .obj mesh"
+mkdir -p "$T/used" && echo x >"$T/used/f"
+expect 1 "$B/apps/g2l_train" --objects "$S/tests/data/ycbv_mini/models" --out "$T/used" --minutes 1
+has "already holds files"
 # Detector configs ("task": "detector"): strict keys, and g2l_eval's detector modes.
 printf '{"task": "detector", "data": {"models_root": "/m", "object_ids": [1], "colour": 1}}' >"$T/det.json"
 expect 1 "$B/apps/g2l_train" --config "$T/det.json"

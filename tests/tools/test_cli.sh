@@ -63,6 +63,18 @@ has "holds no .ply or .obj mesh"
 mkdir -p "$T/used" && echo x >"$T/used/f"
 expect 1 "$B/apps/g2l_train" --objects "$S/tests/data/ycbv_mini/models" --out "$T/used" --minutes 1
 has "already holds files"
+# The road a new user takes: meshes -> RUN (1 step of each training) -> g2l_infer with the
+# detector, the pose model and the written meshes, on a real fixture frame.
+expect 0 "$B/apps/g2l_train" --objects "$S/tests/data/ycbv_mini/models" --out "$T/own" --minutes 1 --max-steps 1
+has "object 8 = obj_000008"
+for f in detector.g2l pose.g2l models/models_info.json models/obj_000014.ply obj_names.json pose.json; do
+    [ -f "$T/own/$f" ] || fail "--objects wrote no $f"
+done
+OWN_SCENE="$S/tests/data/ycbv_mini/train_real/000000"
+expect 0 "$B/apps/g2l_infer" --model "$T/own/pose.g2l" --detector "$T/own/detector.g2l" \
+    --meshes "$T/own/models" --depth "$OWN_SCENE/depth/000001.png" \
+    --camera "$OWN_SCENE/scene_camera.json" --image-id 1
+grep -q '"objects"' "$T/out" || fail "g2l_infer on the --objects run printed no pose list"
 # Detector configs ("task": "detector"): strict keys, and g2l_eval's detector modes.
 printf '{"task": "detector", "data": {"models_root": "/m", "object_ids": [1], "colour": 1}}' >"$T/det.json"
 expect 1 "$B/apps/g2l_train" --config "$T/det.json"

@@ -169,6 +169,61 @@ int run_bench(std::vector<LoadedModel> models, int frames, int threads, uint64_t
     return 0;
 }
 
+// The ids and names of meshes not named as BOP names them, said and kept in obj_names.json.
+void write_names(const std::vector<LoadedModel>& models, const fs::path& root) {
+    std::map<int, std::string> names;
+    bool renamed = false;
+    for (const LoadedModel& m : models) {
+        names[m.obj_id] = m.name;
+        char bop[32];
+        std::snprintf(bop, sizeof bop, "obj_%06d", m.obj_id);
+        renamed |= m.name != bop;
+    }
+    if (!renamed) return;
+    for (const auto& [id, name] : names)
+        std::fprintf(stderr, "g2l_render: object %d = %s\n", id, name.c_str());
+    data::write_obj_names(root.string(), names);
+}
+
+// Frames writer.next_image_id() .. frames - 1, with progress; after the first, the disk must
+// hold the rest (at that frame's size, + 25 %), else the scene stops there, listed and marked
+// incomplete, and the error says how to go on.
+void render_frames(data::SceneGenerator& gen, data::BopSceneWriter& writer, int64_t frames,
+                   int threads) {
+    const bool tty = isatty(fileno(stderr));
+    const auto t0 = Clock::now();
+    auto last = t0;
+    data::RenderedFrame frame;
+    const int64_t first = writer.next_image_id();
+    for (int64_t f = first; f < frames; ++f) {
+        gen.render_frame(f, frame, threads);
+        writer.write(int(f), frame);
+        if (f == first && f + 1 < frames) {
+            const double per_frame = double(writer.image_bytes(int(f)));
+            const double need = 1.25 * per_frame * double(frames - f - 1) + 64e6;
+            std::error_code ec;
+            const auto space = fs::space(writer.dir(), ec);
+            if (!ec && double(space.available) < need) {
+                writer.flush();
+                G2L_CHECK(false, "--frames ", frames, " needs about ", need / 1e9, " GB more (",
+                          per_frame / 1e6, " MB per frame) but the disk of '", writer.dir(),
+                          "' has ", double(space.available) / 1e9, " GB free: free some space and "
+                          "continue with --resume, or render fewer frames");
+            }
+        }
+        const auto now = Clock::now();
+        const bool step = tty ? std::chrono::duration<double>(now - last).count() > 0.2
+                              : std::chrono::duration<double>(now - last).count() > 10.0;
+        if (step || f + 1 == frames) {
+            progress(f + 1 - first, frames - first, std::chrono::duration<double>(now - t0).count(),
+                     tty);
+            last = now;
+        }
+        if ((f + 1) % 200 == 0) writer.flush();  // partial output stays readable
+    }
+    writer.finish();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -194,9 +249,21 @@ int main(int argc, char** argv) {
     bool force = false;
     app.add_flag("--force", force, "replace an existing <out>/<split>/<scene> folder (without it "
                                    "an existing non-empty scene folder is refused)");
+    bool resume = false;
+    app.add_flag("--resume", resume, "continue the interrupted render of <out>/<split>/<scene> "
+                                     "(it holds render_incomplete.json) with its own "
+                                     "scene_config.json and frame count: the scene an "
+                                     "uninterrupted render would have written");
     bool verbose = false;
     app.add_flag("--verbose", verbose, "error messages with their source location (also G2L_VERBOSE=1)");
     if (const int rc = g2l::cli::parse(app, argc, argv, "g2l_render"); rc >= 0) return rc;
+    if (resume && (force || app.count("--config") || app.count("--seed") || app.count("--objects") ||
+                   app.count("--frames"))) {
+        std::fprintf(stderr, "g2l_render: --resume continues a scene with its own config, seed, "
+                             "objects and frame count: it takes no --force, --config, --seed, "
+                             "--objects or --frames (see g2l_render --help)\n");
+        return g2l::cli::kUsageError;
+    }
     if (!bench && (model_args.empty() || out_dir.empty())) {
         std::fprintf(stderr, "g2l_render: give --models and --out (unless --bench) (see g2l_render --help)\n");
         return g2l::cli::kUsageError;
@@ -213,6 +280,11 @@ int main(int argc, char** argv) {
         std::vector<LoadedModel> models = load_models(model_args);
         if (bench) return run_bench(std::move(models), int(std::min<int64_t>(frames, 1000)),
                                     threads, seed);
+        char scene_name[16];
+        std::snprintf(scene_name, sizeof scene_name, "%06d", scene_id);
+        const fs::path root(out_dir);
+        const fs::path scene_dir = root / split / scene_name;
+        if (resume) config_path = (scene_dir / "scene_config.json").string();
         data::SceneConfig cfg =
             config_path.empty() ? data::SceneConfig{} : data::load_scene_config(config_path);
         if (seed_given) cfg.seed = seed;
@@ -231,52 +303,28 @@ int main(int argc, char** argv) {
         }
         data::SceneGenerator gen(cfg, sm);
 
-        const fs::path root(out_dir);
         data::write_bop_models((root / "models").string(), sm);
-        // Meshes not named as BOP names them: their ids and names, said and kept.
-        std::map<int, std::string> names;
-        bool renamed = false;
-        for (const LoadedModel& m : models) {
-            names[m.obj_id] = m.name;
-            char bop[32];
-            std::snprintf(bop, sizeof bop, "obj_%06d", m.obj_id);
-            renamed |= m.name != bop;
+        write_names(models, root);
+        if (resume) {
+            data::BopSceneWriter writer = data::BopSceneWriter::resume(scene_dir.string());
+            std::fprintf(stderr, "g2l_render: resuming '%s' at frame %d of %lld\n",
+                         scene_dir.string().c_str(), writer.next_image_id(),
+                         (long long)writer.planned());
+            render_frames(gen, writer, writer.planned(), threads);
+            std::printf("wrote %lld frames to %s\n", (long long)writer.planned(),
+                        writer.dir().c_str());
+            return 0;
         }
-        if (renamed) {
-            for (const auto& [id, name] : names)
-                std::fprintf(stderr, "g2l_render: object %d = %s\n", id, name.c_str());
-            data::write_obj_names(root.string(), names);
-        }
-        char scene_name[16];
-        std::snprintf(scene_name, sizeof scene_name, "%06d", scene_id);
-        const fs::path scene_dir = root / split / scene_name;
         if (fs::exists(scene_dir) && !fs::is_empty(scene_dir)) {
             G2L_CHECK(force, "'", scene_dir.string(), "' already holds a rendered scene: its images "
                       "would mix with the new ones; choose another --out / --split / --scene-id, "
-                      "or replace it with --force");
+                      "or replace it with --force (an interrupted one continues with --resume)");
             fs::remove_all(scene_dir);
         }
         data::BopSceneWriter writer(scene_dir.string(), frames);
-        write_file_atomic((root / split / scene_name / "scene_config.json").string(),
+        write_file_atomic((scene_dir / "scene_config.json").string(),
                           data::scene_config_to_json(cfg) + "\n");
-
-        const bool tty = isatty(fileno(stderr));
-        const auto t0 = Clock::now();
-        auto last = t0;
-        data::RenderedFrame frame;
-        for (int64_t f = 0; f < frames; ++f) {
-            gen.render_frame(f, frame, threads);
-            writer.write(int(f), frame);
-            const auto now = Clock::now();
-            const bool step = tty ? std::chrono::duration<double>(now - last).count() > 0.2
-                                  : std::chrono::duration<double>(now - last).count() > 10.0;
-            if (step || f + 1 == frames) {
-                progress(f + 1, frames, std::chrono::duration<double>(now - t0).count(), tty);
-                last = now;
-            }
-            if ((f + 1) % 200 == 0) writer.flush();  // partial output stays readable
-        }
-        writer.finish();
+        render_frames(gen, writer, frames, threads);
         std::printf("wrote %lld frames to %s\n", (long long)frames, writer.dir().c_str());
         return 0;
     } catch (const std::exception& e) {

@@ -209,8 +209,9 @@ std::vector<Frame> read_scene(const SceneContext& sc) {
         const json m = read_json(marker);
         G2L_CHECK(false, "scene '", sc.dir.string(), "' was not finished: its render stopped with ",
                   m.value("frames_listed", 0), " of ", m.value("frames_planned", 0), " frames "
-                  "listed in scene_gt.json (", marker.string(), "); render it again (g2l_render "
-                  "--force), or delete the marker to use the frames listed");
+                  "listed in scene_gt.json (", marker.string(), "); continue it (g2l_render "
+                  "--resume), render it again (g2l_render --force), or delete the marker to use "
+                  "the frames listed");
     }
     const json gt = read_json(gt_path), cam = read_json(cam_path);
     const bool has_info = fs::is_regular_file(info_path);

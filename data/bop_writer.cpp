@@ -152,6 +152,71 @@ void BopSceneWriter::finish() const {
               "': ", ec.message());
 }
 
+BopSceneWriter BopSceneWriter::resume(const std::string& scene_dir) {
+    const fs::path dir(scene_dir);
+    std::error_code ec;
+    G2L_CHECK(fs::is_regular_file(dir / kIncompleteMarker, ec), "'", scene_dir, "' holds no ",
+              kIncompleteMarker, ": it is complete (or not a rendered scene), nothing to resume");
+    BopSceneWriter w;
+    w.dir_ = scene_dir;
+    const json marker = parse_json_file((dir / kIncompleteMarker).string());
+    G2L_CHECK(marker.is_object() && marker.contains("frames_planned") &&
+                  marker["frames_planned"].is_number_integer(),
+              "'", (dir / kIncompleteMarker).string(), "' has no integer frames_planned");
+    w.planned_ = marker["frames_planned"].get<int64_t>();
+    // The records as the last flush wrote them, each kept as its serialised text (a parse and
+    // dump of nlohmann's shortest round-trip numbers gives the same text back).
+    for (auto [file, records] : {std::pair<const char*, std::map<int, std::string>*>{
+                                     "scene_gt.json", &w.gt_},
+                                 {"scene_camera.json", &w.camera_},
+                                 {"scene_gt_info.json", &w.info_}}) {
+        const std::string path = (dir / file).string();
+        const json j = parse_json_file(path);
+        G2L_CHECK(j.is_object(), "'", path, "' must be a JSON object of image ids");
+        for (auto it = j.begin(); it != j.end(); ++it) {
+            char* end = nullptr;
+            const long id = std::strtol(it.key().c_str(), &end, 10);
+            G2L_CHECK(*end == '\0' && id >= 0 && id < (1L << 30), "'", path, "': key '", it.key(),
+                      "' is not an image id");
+            (*records)[int(id)] = it.value().dump();
+        }
+    }
+    G2L_CHECK(w.gt_.size() == w.camera_.size() && w.gt_.size() == w.info_.size(), "'", scene_dir,
+              "': scene_gt.json, scene_camera.json and scene_gt_info.json list different frames");
+    // Images of frames written after the last flush: no record names them; rendered again.
+    for (const char* sub : {"rgb", "depth", "mask", "mask_visib"}) {
+        G2L_CHECK(fs::is_directory(dir / sub, ec), "'", scene_dir, "' has no ", sub, "/ folder");
+        std::vector<fs::path> orphans;
+        for (const auto& e : fs::directory_iterator(dir / sub)) {
+            // Also a crash's leftover temporary files (<name>.tmp.<pid>).
+            const int id = std::atoi(e.path().filename().string().c_str());
+            if (!w.gt_.count(id) || e.path().extension() != ".png") orphans.push_back(e.path());
+        }
+        for (const fs::path& o : orphans) fs::remove(o, ec);
+    }
+    w.flush();
+    return w;
+}
+
+uint64_t BopSceneWriter::image_bytes(int image_id) const {
+    const fs::path dir(dir_);
+    std::error_code ec;
+    uint64_t bytes = 0;
+    auto add = [&](const fs::path& p) {
+        const auto n = fs::file_size(p, ec);
+        if (!ec) bytes += n;
+    };
+    add(dir / "rgb" / im_name(image_id));
+    add(dir / "depth" / im_name(image_id));
+    const auto it = gt_.find(image_id);
+    const size_t k = it == gt_.end() ? 0 : json::parse(it->second).size();
+    for (size_t i = 0; i < k; ++i) {
+        add(dir / "mask" / mask_name(image_id, int(i)));
+        add(dir / "mask_visib" / mask_name(image_id, int(i)));
+    }
+    return bytes;
+}
+
 std::string read_symmetries(const std::string& models_info_path, int obj_id) {
     std::error_code ec;
     // No models_info.json: no declared symmetries (BOP readers treat absent ones as none).

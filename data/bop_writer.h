@@ -43,9 +43,23 @@ public:
     /// flush(), then removes the marker: the scene is complete.
     void finish() const;
 
+    /// Reopens the scene an interrupted writer left in scene_dir (it holds kIncompleteMarker):
+    /// its scene_gt / scene_camera / scene_gt_info records are read back, and the images of
+    /// frames they do not list (written after the last flush) are deleted, so writing the
+    /// frames from next_image_id() on and finish() give the scene an uninterrupted writer
+    /// would have written. planned(): the marker's frame count. Throws g2l::Error naming the
+    /// folder when it holds no marker (a complete scene, or none) or a record is unreadable.
+    static BopSceneWriter resume(const std::string& scene_dir);
+    /// One past the largest image id written or read back (0 for none).
+    int next_image_id() const { return gt_.empty() ? 0 : gt_.rbegin()->first + 1; }
+    int64_t planned() const { return planned_; }
+    /// The bytes of the files image `image_id` was written as (its rgb, depth and masks).
+    uint64_t image_bytes(int image_id) const;
+
     const std::string& dir() const { return dir_; }
 
 private:
+    BopSceneWriter() = default;
     std::string dir_;
     int64_t planned_ = 0;
     std::map<int, std::string> gt_, camera_, info_;  ///< image id -> serialised JSON value

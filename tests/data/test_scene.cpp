@@ -681,3 +681,52 @@ TEST_CASE("mesh_file_ids: BOP names keep their ids, other names take the smalles
           "{\n  \"1\": \"bracket\",\n  \"14\": \"Housing v2\"\n}\n");
     REQUIRE_THROWS_WITH(write_obj_names(root + "/no/such/dir", {{1, "a"}}), Contains("obj_names.json"));
 }
+
+TEST_CASE("BopSceneWriter::resume: an interrupted render continues to the scene an "
+          "uninterrupted one writes, without orphan images", "[data][scene][bop]") {
+    Models m;
+    SceneConfig cfg = small_config();
+    cfg.target_obj_ids = {1, 5};
+    SceneGenerator gen(cfg, m.list());
+    const fs::path a = fs::path(testing::temp_dir("resume_a")) / "000000";
+    const fs::path b = fs::path(testing::temp_dir("resume_b")) / "000000";
+    RenderedFrame f;
+    {  // uninterrupted
+        BopSceneWriter w(a.string(), 4);
+        for (int i = 0; i < 4; ++i) gen.render_frame(i, f), w.write(i, f);
+        w.finish();
+    }
+    {  // killed after frame 2 was written, with frames 0-1 flushed (plus a temporary file)
+        BopSceneWriter w(b.string(), 4);
+        for (int i = 0; i < 2; ++i) gen.render_frame(i, f), w.write(i, f);
+        w.flush();
+        gen.render_frame(2, f), w.write(2, f);
+        std::ofstream((b / "rgb" / "000003.png.tmp.99").string()) << "partial";
+    }
+    REQUIRE(fs::exists(b / "rgb" / "000002.png"));
+    {
+        BopSceneWriter w = BopSceneWriter::resume(b.string());
+        CHECK(w.next_image_id() == 2);
+        CHECK(w.planned() == 4);
+        CHECK_FALSE(fs::exists(b / "rgb" / "000002.png"));  // the orphan of the unlisted frame
+        CHECK_FALSE(fs::exists(b / "mask" / "000002_000000.png"));
+        CHECK_FALSE(fs::exists(b / "rgb" / "000003.png.tmp.99"));
+        CHECK(fs::exists(b / "rgb" / "000001.png"));
+        CHECK(w.image_bytes(1) > 1000);
+        for (int i = w.next_image_id(); i < 4; ++i) gen.render_frame(i, f), w.write(i, f);
+        w.finish();
+    }
+    for (const char* file : {"scene_gt.json", "scene_camera.json", "scene_gt_info.json",
+                             "rgb/000003.png", "depth/000002.png", "mask_visib/000003_000001.png"})
+        CHECK(testing::read_file((a / file).string()) == testing::read_file((b / file).string()));
+    CHECK(testing::dir_entries((a / "mask").string()) == testing::dir_entries((b / "mask").string()));
+    CHECK_FALSE(fs::exists(b / kIncompleteMarker));
+    // A complete scene, or none, has nothing to resume; a mangled record is named.
+    REQUIRE_THROWS_WITH(BopSceneWriter::resume(b.string()), Contains("nothing to resume"));
+    {
+        BopSceneWriter w(b.string() + "_x", 2);
+        std::ofstream(b.string() + "_x/scene_gt.json") << "{\"one\": []}";
+    }
+    REQUIRE_THROWS_WITH(BopSceneWriter::resume(b.string() + "_x"),
+                        Contains("scene_gt.json") && Contains("'one' is not an image id"));
+}

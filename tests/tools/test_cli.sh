@@ -154,6 +154,21 @@ expect 0 "$B/apps/g2l_render" --models "$M" --out "$T/r" --frames 2 --threads 1
 expect 1 "$B/apps/g2l_render" --models "$M" --out "$T/r" --frames 1 --threads 1
 has "already holds a rendered scene"
 expect 0 "$B/apps/g2l_render" --models "$M" --out "$T/r" --frames 1 --threads 1 --force
+# An interrupted render continues (--resume: its own config and frame count), a complete one
+# has nothing to resume, and --frames the disk cannot hold stops after the first frame, listed
+# and marked incomplete, saying how to go on.
+expect 2 "$B/apps/g2l_render" --models "$M" --out "$T/r" --resume --frames 3
+has "--resume continues a scene with its own config"
+expect 1 "$B/apps/g2l_render" --models "$M" --out "$T/r" --resume --threads 1
+has "nothing to resume"
+expect 1 "$B/apps/g2l_render" --models "$M" --out "$T/rbig" --frames 1000000000000 --threads 1
+has "needs about" && has "GB free" && has "--resume"
+[ -f "$T/rbig/train_synt/000000/render_incomplete.json" ] || fail "the stopped render is not marked"
+printf '{"frames_planned": 2, "frames_listed": 1}\n' >"$T/rbig/train_synt/000000/render_incomplete.json"
+expect 0 "$B/apps/g2l_render" --models "$M" --out "$T/rbig" --resume --threads 1
+has "resuming"
+[ -f "$T/rbig/train_synt/000000/depth/000001.png" ] || fail "--resume rendered no frame 1"
+[ ! -f "$T/rbig/train_synt/000000/render_incomplete.json" ] || fail "a resumed render stays marked"
 # Units: a models_info.json beside the meshes whose diameter is 10x the mesh's is refused,
 # naming both and the slip.
 mkdir -p "$T/units"

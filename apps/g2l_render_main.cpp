@@ -175,9 +175,7 @@ void write_names(const std::vector<LoadedModel>& models, const fs::path& root) {
     bool renamed = false;
     for (const LoadedModel& m : models) {
         names[m.obj_id] = m.name;
-        char bop[32];
-        std::snprintf(bop, sizeof bop, "obj_%06d", m.obj_id);
-        renamed |= m.name != bop;
+        renamed |= data::bop_mesh_id(m.name) != m.obj_id;
     }
     if (!renamed) return;
     for (const auto& [id, name] : names)

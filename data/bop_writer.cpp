@@ -264,19 +264,20 @@ void write_bop_models(const std::string& models_dir, const std::vector<SceneMode
     write_file_atomic((fs::path(models_dir) / "models_info.json").string(), assemble(info));
 }
 
+int bop_mesh_id(const std::string& file) {
+    const std::string stem = fs::path(file).stem().string();
+    if (stem.size() < 5 || stem.size() > 13 || stem.compare(0, 4, "obj_") != 0) return -1;
+    for (size_t i = 4; i < stem.size(); ++i)
+        if (stem[i] < '0' || stem[i] > '9') return -1;
+    const int id = std::stoi(stem.substr(4));
+    return id > 0 ? id : -1;
+}
+
 std::vector<int> mesh_file_ids(const std::vector<std::string>& files) {
-    auto bop_id = [](const std::string& file) {
-        const std::string stem = fs::path(file).stem().string();
-        if (stem.size() < 5 || stem.size() > 13 || stem.compare(0, 4, "obj_") != 0) return -1;
-        for (size_t i = 4; i < stem.size(); ++i)
-            if (stem[i] < '0' || stem[i] > '9') return -1;
-        const int id = std::stoi(stem.substr(4));
-        return id > 0 ? id : -1;
-    };
     std::vector<int> ids(files.size(), -1);
     std::map<int, size_t> owner;
     for (size_t i = 0; i < files.size(); ++i) {
-        const int id = bop_id(files[i]);
+        const int id = bop_mesh_id(files[i]);
         if (id < 0) continue;
         G2L_CHECK(!owner.count(id), "'", files[owner[id]], "' and '", files[i],
                   "' both give object ", id);

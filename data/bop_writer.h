@@ -70,6 +70,10 @@ private:
 /// declares none). Throws g2l::Error naming the file for invalid JSON or a non-array entry.
 std::string read_symmetries(const std::string& models_info_path, int obj_id);
 
+/// The object id a BOP file name gives (obj_000005.ply, obj_12.obj -> 5, 12: "obj_" and digits
+/// only before the extension), or -1 for any other name.
+int bop_mesh_id(const std::string& file);
+
 /// The object ids of mesh files handed in (g2l_render --models, g2l_train --objects): a file
 /// named obj_NNNNNN.ply / .obj keeps NNNNNN (a BOP folder stays comparable with its dataset);
 /// the others get the smallest ids no file claims, in the order given. Throws g2l::Error

@@ -146,7 +146,7 @@ ModelInfo check_mesh_units(const Mesh& mesh, const ModelInfo* declared,
                   " mm across (its two farthest vertices) but ", declared_in, " declares diameter ",
                   declared->diameter, " mm (", r, " x)", unit_hint(r));
     } else {
-        G2L_CHECK(measured.diameter >= 10, "mesh '", mesh.path, "' is only ", measured.diameter,
+        G2L_CHECK(measured.diameter >= kMetreMeshBelow, "mesh '", mesh.path, "' is only ", measured.diameter,
                   " units across: meshes are in millimetres, and this one looks like metres — "
                   "scale its vertices by 1000");
     }

@@ -25,6 +25,11 @@ ModelInfo compute_model_info(const Points& vertices);
 ///    1 m given in metres is 1 unit across) is refused as being in metres.
 /// Returns the measured info. Throws g2l::Error naming the mesh, both diameters and the fix
 /// (a mesh in metres: scale by 1000; a factor of 10: a cm / mm slip).
+/// Below this many units across, a mesh is taken to be in metres (a part under 1 cm is rare; a
+/// part of 1 m given in metres is 1 unit across): check_mesh_units refuses it, g2l_train
+/// --objects scales it by 1000.
+constexpr double kMetreMeshBelow = 10;
+
 ModelInfo check_mesh_units(const Mesh& mesh, const ModelInfo* declared,
                            const std::string& declared_in = "");
 

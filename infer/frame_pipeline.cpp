@@ -19,10 +19,6 @@ double ms_since(Clock::time_point t0) {
 }
 }  // namespace
 
-Refinement parse_refine(const std::string& text, const std::string& what) {
-    return parse_refinement(text, what);
-}
-
 const char* to_string(PoseStatus s) {
     switch (s) {
         case PoseStatus::ok: return "ok";

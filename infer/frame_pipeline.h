@@ -28,10 +28,6 @@
 
 namespace g2l::infer {
 
-/// "none" / "icp" / "turns" / "automatic" (the spelling of every command line and config);
-/// anything else throws g2l::Error naming `what` and the value.
-Refinement parse_refine(const std::string& text, const std::string& what);
-
 /// What the refinement (and evaluation's object-point rule) needs of one object's mesh,
 /// prepared once per object: the surface k-d tree (vertices + surface samples), and for the
 /// refinement the tree points' normals and the closest-point grid.

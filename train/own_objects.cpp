@@ -3,13 +3,12 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
-#include <set>
-#include <cmath>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -182,7 +181,7 @@ std::vector<OwnObject> prepare_own_models(const std::string& dir, const std::str
         G2L_CHECK(mesh->vertices.rows() > 0 && mesh->faces.rows() > 0, "--objects: mesh '",
                   o.source, "' has no faces");
         geom::ModelInfo mi = geom::compute_model_info(mesh->vertices);
-        if (mi.diameter < 10) {  // a part under 1 cm is rare; one of 1 m in metres is 1 unit
+        if (mi.diameter < geom::kMetreMeshBelow) {
             mesh->vertices *= 1000.f;
             o.converted_from_m = true;
             if (notes)
@@ -190,7 +189,7 @@ std::vector<OwnObject> prepare_own_models(const std::string& dir, const std::str
                                      "as metres, scaled by 1000 to ", 1000 * mi.diameter, " mm"));
         }
         mesh->path = o.source;
-        mi = geom::check_mesh_units(*mesh, nullptr);  // still < 10 mm: refused, naming it
+        mi = geom::check_mesh_units(*mesh, nullptr);  // still under it in mm: refused, naming it
         o.diameter_mm = mi.diameter;
         const geom::ModelKdTree tree = geom::ModelKdTree::from_mesh(*mesh);
         const auto syms = geom::geometric_symmetries(tree, mi);

@@ -28,7 +28,7 @@ TEST_CASE("g2l_eval's evaluation and PoseEstimator give bitwise the same poses o
           {"turns", g2l::Refinement::turns}}) {
         INFO("refinement " << refine);
         g2l::eval::EvalOptions eo;  // the pipeline's options: the library's own type
-        eo.pipeline.refine = g2l::infer::parse_refine(refine, "refine");
+        eo.pipeline.refine = g2l::parse_refinement(refine, "refine");
         std::vector<g2l::eval::InstanceResult> inst;
         g2l::eval::evaluate_instances(g2l::infer::PipelineModel::of(m), ds, eo, &inst);
         REQUIRE(inst.size() == 4);
@@ -72,17 +72,17 @@ TEST_CASE("g2l_eval's evaluation and PoseEstimator give bitwise the same poses o
 TEST_CASE("FramePipeline: refinement and crop names are parsed once, bad ones named", "[infer]") {
     using g2l::Refinement;
     using g2l::geom::CropKind;
-    CHECK(g2l::infer::parse_refine("turns", "x") == Refinement::turns);
-    CHECK(g2l::infer::parse_refine("icp", "x") == Refinement::icp);
-    CHECK(g2l::infer::parse_refine("none", "x") == Refinement::none);
-    CHECK(g2l::infer::parse_refine("automatic", "x") == Refinement::automatic);
-    CHECK_THROWS_WITH(g2l::infer::parse_refine("Turns", "--refine"),
+    CHECK(g2l::parse_refinement("turns", "x") == Refinement::turns);
+    CHECK(g2l::parse_refinement("icp", "x") == Refinement::icp);
+    CHECK(g2l::parse_refinement("none", "x") == Refinement::none);
+    CHECK(g2l::parse_refinement("automatic", "x") == Refinement::automatic);
+    CHECK_THROWS_WITH(g2l::parse_refinement("Turns", "--refine"),
                       Catch::Matchers::Contains("--refine must be none, icp, turns or automatic, got 'Turns'"));
     CHECK(g2l::geom::parse_crop("frustum", "x") == CropKind::frustum);
     CHECK_THROWS_WITH(g2l::geom::parse_crop("cube", "crop"),
                       Catch::Matchers::Contains("crop must be sphere, frustum or slab, got 'cube'"));
     for (Refinement r : {Refinement::none, Refinement::icp, Refinement::turns, Refinement::automatic})
-        CHECK(g2l::infer::parse_refine(g2l::to_string(r), "x") == r);
+        CHECK(g2l::parse_refinement(g2l::to_string(r), "x") == r);
 }
 
 TEST_CASE("PipelineOptions: one type for every road, checked where it is defined", "[infer]") {

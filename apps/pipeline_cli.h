@@ -32,7 +32,7 @@ inline void add_pipeline_options(CLI::App& app, PipelineOptions& o, const std::s
     app.add_option("--refine", o.refine,
                    "depth refinement against the objects' meshes: turns (ICP from the networks' "
                    "pose and from it turned by the model box's near-symmetric turns, the best "
-                   "depth fit wins; ~20-40 ms per object), icp (from the networks' pose only), "
+                   "depth fit wins; ~20-30 ms per object), icp (from the networks' pose only), "
                    "none (the networks alone, as G2L-Net publishes them); automatic (default): "
                    "turns for every object with a mesh")
         ->transform(CLI::CheckedTransformer(refinements));

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "core/error.h"
 
@@ -108,6 +109,18 @@ float ModelKdTree::nearest(const Eigen::Vector3f& q, int* index) const {
     float d2 = 0;
     impl_->index->knnSearch(q.data(), 1, &idx, &d2);
     if (index) *index = static_cast<int>(idx);
+    return std::sqrt(d2);
+}
+
+float ModelKdTree::nearest_below(const Eigen::Vector3f& q, float bound_mm, int* index) const {
+    uint32_t idx = 0;
+    float d2 = 0;
+    nanoflann::KNNResultSet<float, uint32_t> rs(1);
+    rs.init(&idx, &d2);
+    d2 = bound_mm * bound_mm;  // the result set's worst distance: the search's pruning radius
+    impl_->index->findNeighbors(rs, q.data(), nanoflann::SearchParams());
+    if (rs.size() == 0) return std::numeric_limits<float>::infinity();
+    *index = static_cast<int>(idx);
     return std::sqrt(d2);
 }
 

@@ -42,6 +42,12 @@ public:
     /// non-null. Ties between equidistant points are resolved by the tree, not by index.
     float nearest(const Eigen::Vector3f& q, int* index = nullptr) const;
 
+    /// The same nearest point when it lies closer than `bound_mm`: the search prunes every branch
+    /// beyond the bound, so a caller that knows a near point (a ClosestPointGrid's, whose
+    /// distance bounds the nearest one's) gets the exact answer for a fraction of the search.
+    /// Returns infinity (and leaves *index alone) when no tree point is closer than bound_mm.
+    float nearest_below(const Eigen::Vector3f& q, float bound_mm, int* index) const;
+
     /// The k nearest tree points of q (k >= 1, at most size()), nearest first: row indices to
     /// idx[0..k), squared distances to d2[0..k). Returns the number found.
     int knn(const Eigen::Vector3f& q, int k, int* idx, float* d2) const;

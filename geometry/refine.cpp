@@ -68,20 +68,28 @@ std::vector<std::vector<int64_t>> euclidean_clusters(const Points& pts, double r
     return out;
 }
 
-// Distance from x (model frame) to its nearest model point, that point's row to *index: the
-// k-d tree's exact one, or with `grid` the one of x's cell (infinity outside the grid).
-inline float nearest_of(const ModelKdTree& tree, const ClosestPointGrid* grid,
+// Distance from x (model frame) to its nearest model point, that point's row to *index: with
+// `grid` and not `exact`, the point of x's cell (infinity outside the grid); else the k-d tree's
+// exact one, its search bounded by the cell's point when there is one (the nearest point is no
+// farther than it; the same answer as the unbounded search, in a fraction of its time).
+inline float nearest_of(const ModelKdTree& tree, const ClosestPointGrid* grid, bool exact,
                         const Eigen::Vector3f& x, int* index) {
     if (!grid) return tree.nearest(x, index);
     const int k = grid->lookup(x);
-    *index = std::max(k, 0);
-    if (k < 0) return std::numeric_limits<float>::infinity();
-    return (x - tree.points().row(k).transpose()).norm();
+    if (k < 0) {
+        *index = 0;
+        return exact ? tree.nearest(x, index) : std::numeric_limits<float>::infinity();
+    }
+    *index = k;
+    const float d0 = (x - tree.points().row(k).transpose()).norm();
+    if (!exact) return d0;
+    const float d = tree.nearest_below(x, d0 * (1.f + 1e-5f) + 1e-6f, index);
+    return std::isfinite(d) ? d : d0;
 }
 
-// fit_error, with the grid's nearest points when `grid` is set.
-double fit_with(const ModelKdTree& tree, const ClosestPointGrid* grid, const Points& obs,
-                const Pose& pose, double cap_mm) {
+// fit_error, with the grid's nearest points when `grid` is set and not `exact`.
+double fit_with(const ModelKdTree& tree, const ClosestPointGrid* grid, bool exact,
+                const Points& obs, const Pose& pose, double cap_mm) {
     if (obs.rows() == 0) return cap_mm;
     const Eigen::Matrix3f Rt = pose.R.transpose().cast<float>();
     const Eigen::Vector3f t = pose.t.cast<float>();
@@ -89,7 +97,7 @@ double fit_with(const ModelKdTree& tree, const ClosestPointGrid* grid, const Poi
     int idx = 0;
     for (int64_t i = 0; i < obs.rows(); ++i) {
         const Eigen::Vector3f q = obs.row(i).transpose();
-        sum += std::min<double>(cap_mm, nearest_of(tree, grid, Rt * (q - t), &idx));
+        sum += std::min<double>(cap_mm, nearest_of(tree, grid, exact, Rt * (q - t), &idx));
     }
     return sum / double(obs.rows());
 }
@@ -102,9 +110,9 @@ struct Icp {
     Points M, Q;   // scratch pairs
     std::vector<float> d;
 
-    // `iters` ICP steps from `pose` (nearest points from `grid` when set, else the k-d tree);
-    // returns the fit of the final pose, measured the same way.
-    double run(Pose& pose, int iters, const ClosestPointGrid* grid = nullptr) {
+    // `iters` ICP steps from `pose` (nearest points from `grid` when set and not `exact`, else
+    // the k-d tree's); returns the fit of the final pose, measured the same way.
+    double run(Pose& pose, int iters, const ClosestPointGrid* grid, bool exact) {
         const int64_t n = obs.rows();
         M.resize(n, 3);
         Q.resize(n, 3);
@@ -116,7 +124,7 @@ struct Icp {
             const Eigen::Vector3f t = pose.t.cast<float>();
             for (int64_t i = 0; i < n; ++i) {
                 const Eigen::Vector3f q = obs.row(i).transpose();
-                d[size_t(i)] = nearest_of(tree, grid, Rt * (q - t), &idx[size_t(i)]);
+                d[size_t(i)] = nearest_of(tree, grid, exact, Rt * (q - t), &idx[size_t(i)]);
             }
             // Inliers: pairs within cap_mm. (A tighter, median-based cut keeps only the points
             // that already lie on the surface, and a pose slid along a flat face stays there.)
@@ -124,8 +132,10 @@ struct Icp {
             int64_t m = 0;
             for (int64_t i = 0; i < n; ++i) {
                 if (d[size_t(i)] > thr) continue;
-                M.row(m) = mp.row(idx[size_t(i)]);
-                Q.row(m) = obs.row(i);
+                if (!normals) {  // the pairs only point-to-point's Kabsch needs
+                    M.row(m) = mp.row(idx[size_t(i)]);
+                    Q.row(m) = obs.row(i);
+                }
                 ++m;
             }
             if (m < 3) break;
@@ -169,7 +179,7 @@ struct Icp {
             pose = next;
             if (dR < 1e-5 && dt < 1e-3) break;
         }
-        return fit_with(tree, grid, obs, pose, cap_mm);
+        return fit_with(tree, grid, exact, obs, pose, cap_mm);
     }
 };
 
@@ -241,7 +251,7 @@ bool fit_plane(const DepthImage& dimg, int x0, int y0, int x1, int y1, double to
 }
 
 double fit_error(const ModelKdTree& tree, const Points& obs, const Pose& pose, double cap_mm) {
-    return fit_with(tree, nullptr, obs, pose, cap_mm);
+    return fit_with(tree, nullptr, true, obs, pose, cap_mm);
 }
 
 ClosestPointGrid::ClosestPointGrid(const ModelKdTree& tree, double cell_mm, double margin_mm,
@@ -461,7 +471,7 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
             y.pose.R = init.R * T[size_t(h)];
             y.pose.t = init.R * (c - T[size_t(h)] * c) + init.t;
             y.index = int(h);
-            y.fit = cost(y.pose, icp.run(y.pose, opt.coarse_iterations, grid), &y.viol);
+            y.fit = cost(y.pose, icp.run(y.pose, opt.coarse_iterations, grid, false), &y.viol);
         }
         // The network's start and the best turned starts get the full iterations.
         std::vector<Hyp> rest(hyps.begin() + 1, hyps.end());
@@ -471,8 +481,8 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
 #pragma omp parallel for schedule(dynamic, 1) firstprivate(icp)
         for (int64_t i = 0; i < int64_t(final.size()); ++i) {
             Hyp& y = final[size_t(i)];
-            double fit = icp.run(y.pose, opt.iterations, grid);
-            if (grid) fit = icp.run(y.pose, opt.polish_iterations);  // exact steps and fit
+            double fit = icp.run(y.pose, opt.iterations, grid, false);
+            if (grid) fit = icp.run(y.pose, opt.polish_iterations, grid, true);  // exact steps and fit
             y.fit = cost(y.pose, fit, &y.viol);
         }
         r.pose = final[0].pose;

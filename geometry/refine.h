@@ -52,8 +52,9 @@ struct RefineOptions {
     double cluster_min_share = 0.25;
     /// With a ClosestPointGrid (refine_pose's `grid`): the finalists' ICP ends with this many
     /// steps on the exact k-d tree, and their fits are exact (the grid's nearest point is the
-    /// nearest to its cell's centre, up to sqrt(3) cells off).
-    int polish_iterations = 10;
+    /// nearest to its cell's centre, up to sqrt(3) cells off). Each exact step costs ~10 grid
+    /// steps; 3 keep the accuracy 10 gave, at a third of the cost (docs/results.md, issue 37).
+    int polish_iterations = 3;
 };
 
 /// The model point nearest to the centre of each cell of a regular grid over the model points'
@@ -142,8 +143,9 @@ double fit_error(const ModelKdTree& tree, const Points& obs, const Pose& pose, d
 /// point) are given, which converges in far fewer steps along flat faces — each start ranked by its fit plus, when `depth` is given, its
 /// free-space violations. With `grid` (ClosestPointGrid::for_refine of the same tree, cached
 /// per model by the caller) the starts' ICP and ranking look nearest points up in the grid and
-/// the finalists end with opt.polish_iterations exact steps: ~8x faster, the same poses within
-/// a fraction of a millimetre (docs/results.md). Throws g2l::Error if obs has fewer than 3
+/// the finalists end with opt.polish_iterations exact steps (the k-d search bounded by the grid
+/// point's distance): ~8x faster, the same poses within a fraction of a millimetre
+/// (docs/results.md). Throws g2l::Error if obs has fewer than 3
 /// rows, a point or the init pose is not finite, info.diameter is not > 0, or the grid was
 /// built over another tree or with a margin below the inlier cap (opt.inlier_frac * diameter).
 RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const Points& obs,

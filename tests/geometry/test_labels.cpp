@@ -82,6 +82,33 @@ TEST_CASE("ModelKdTree nearest matches brute force", "[geometry]") {
     CHECK(moved.nearest(model.row(17).transpose()) == 0.f);
 }
 
+TEST_CASE("ModelKdTree nearest_below: the exact nearest point within a bound, else none", "[geometry]") {
+    std::mt19937 rng(23);
+    const Points model = test::random_points(3000, 50.0, rng);
+    const ModelKdTree tree(model);
+    const Points q = test::random_points(300, 80.0, rng);
+    std::uniform_real_distribution<float> slack(1.0f, 3.0f);
+    int found = 0;
+    for (int i = 0; i < q.rows(); ++i) {
+        const Eigen::Vector3f x = q.row(i).transpose();
+        int want = -1;
+        const float d = tree.nearest(x, &want);
+        // A bound above the nearest distance (as a grid cell's point gives): the same point.
+        int got = -7;
+        CHECK(tree.nearest_below(x, d * slack(rng) + 1e-3f, &got) == d);
+        CHECK(got == want);
+        // A bound at or below it: nothing, and the index is left alone.
+        got = -7;
+        CHECK(std::isinf(tree.nearest_below(x, d * 0.999f, &got)));
+        CHECK(got == -7);
+        found += want >= 0;
+    }
+    CHECK(found == 300);
+    int idx = -7;
+    CHECK(std::isinf(tree.nearest_below(Eigen::Vector3f(1e4f, 0.f, 0.f), 10.f, &idx)));
+    CHECK(idx == -7);
+}
+
 TEST_CASE("label_points matches brute-force distance to the posed mesh surface", "[geometry]") {
     std::mt19937 rng(23);
     const Mesh m = square_mesh();

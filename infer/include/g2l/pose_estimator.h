@@ -151,7 +151,7 @@ enum class Refinement {
     /// axis permutations, 45-degree axis turns); the start that fits the depth best (object
     /// points close to the mesh, no mesh point in front of the measured surface) wins when it
     /// fits clearly better than the networks' own. Fixes most of the flips a depth-only network
-    /// makes (a box turned over, a mug's handle side); ~30-40 ms per box on 2 cores.
+    /// makes (a box turned over, a mug's handle side); ~20-30 ms per box on 2 cores.
     turns,
     /// The default: `turns` when EstimatorOptions::meshes is given, `none` without.
     automatic

@@ -17,19 +17,18 @@ namespace g2l::geom {
 /// symmetric is false. Throws g2l::Error if N == 0 or a vertex is not finite (naming it).
 ModelInfo compute_model_info(const Points& vertices);
 
-/// The unit and scale check of a mesh a user hands in (meshes are in millimetres): measures it
-/// (compute_model_info) and
-///  - with `declared` (its models_info entry, read from `declared_in`): the measured diameter
-///    must be within 5 % of the declared one;
-///  - without: a mesh less than 10 units across (a part smaller than 1 cm is rare, a part of
-///    1 m given in metres is 1 unit across) is refused as being in metres.
-/// Returns the measured info. Throws g2l::Error naming the mesh, both diameters and the fix
-/// (a mesh in metres: scale by 1000; a factor of 10: a cm / mm slip).
 /// Below this many units across, a mesh is taken to be in metres (a part under 1 cm is rare; a
 /// part of 1 m given in metres is 1 unit across): check_mesh_units refuses it, g2l_train
 /// --objects scales it by 1000.
 constexpr double kMetreMeshBelow = 10;
 
+/// The unit and scale check of a mesh a user hands in (meshes are in millimetres): measures it
+/// (compute_model_info) and
+///  - with `declared` (its models_info entry, read from `declared_in`): the measured diameter
+///    must be within 5 % of the declared one;
+///  - without: a mesh less than kMetreMeshBelow units across is refused as being in metres.
+/// Returns the measured info. Throws g2l::Error naming the mesh, both diameters and the fix
+/// (a mesh in metres: scale by 1000; a factor of 10: a cm / mm slip).
 ModelInfo check_mesh_units(const Mesh& mesh, const ModelInfo* declared,
                            const std::string& declared_in = "");
 

@@ -76,9 +76,10 @@ inline float nearest_of(const ModelKdTree& tree, const ClosestPointGrid* grid, b
                         const Eigen::Vector3f& x, int* index) {
     if (!grid) return tree.nearest(x, index);
     const int k = grid->lookup(x);
+    if (k < 0 && exact) return tree.nearest(x, index);
     if (k < 0) {
         *index = 0;
-        return exact ? tree.nearest(x, index) : std::numeric_limits<float>::infinity();
+        return std::numeric_limits<float>::infinity();
     }
     *index = k;
     const float d0 = (x - tree.points().row(k).transpose()).norm();
@@ -107,15 +108,17 @@ struct Icp {
     const Points& obs;
     const Points* normals;  // point-to-plane when set
     double cap_mm;
-    Points M, Q;   // scratch pairs
+    Points M, Q;   // scratch pairs (point-to-point only)
     std::vector<float> d;
 
     // `iters` ICP steps from `pose` (nearest points from `grid` when set and not `exact`, else
     // the k-d tree's); returns the fit of the final pose, measured the same way.
     double run(Pose& pose, int iters, const ClosestPointGrid* grid, bool exact) {
         const int64_t n = obs.rows();
-        M.resize(n, 3);
-        Q.resize(n, 3);
+        if (!normals) {  // the pairs of point-to-point's Kabsch
+            M.resize(n, 3);
+            Q.resize(n, 3);
+        }
         d.resize(size_t(n));
         std::vector<int> idx(static_cast<size_t>(n));
         const Points& mp = tree.points();
@@ -132,7 +135,7 @@ struct Icp {
             int64_t m = 0;
             for (int64_t i = 0; i < n; ++i) {
                 if (d[size_t(i)] > thr) continue;
-                if (!normals) {  // the pairs only point-to-point's Kabsch needs
+                if (!normals) {
                     M.row(m) = mp.row(idx[size_t(i)]);
                     Q.row(m) = obs.row(i);
                 }

@@ -145,9 +145,9 @@ double fit_error(const ModelKdTree& tree, const Points& obs, const Pose& pose, d
 /// per model by the caller) the starts' ICP and ranking look nearest points up in the grid and
 /// the finalists end with opt.polish_iterations exact steps (the k-d search bounded by the grid
 /// point's distance): ~8x faster, the same poses within a fraction of a millimetre
-/// (docs/results.md). Throws g2l::Error if obs has fewer than 3
-/// rows, a point or the init pose is not finite, info.diameter is not > 0, or the grid was
-/// built over another tree or with a margin below the inlier cap (opt.inlier_frac * diameter).
+/// (docs/results.md). Throws g2l::Error if obs has fewer than 3 rows, a point or the init pose
+/// is not finite, info.diameter is not > 0, or the grid was built over another tree or with a
+/// margin below the inlier cap (opt.inlier_frac * diameter).
 RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const Points& obs,
                          const Pose& init, const RefineOptions& opt = {},
                          const DepthImage* depth = nullptr, const Points* normals = nullptr,

@@ -186,6 +186,10 @@ DetectorTrainConfig load_detector_config(const std::string& path,
     // of docs/config.md can be set even when the file leaves it out.
     DetectorTrainConfig c = parse_detector_config(text.str(), path, dir);
     if (sets.empty()) return c;
+    // run_dir defaults to runs/<name> after the overrides (as the pose trainer's): --set name=X
+    // moves the run to runs/X unless the file or a --set gives run_dir.
+    const json file = parse_json_strict(text.str(), path);
+    if (!file.contains("run_dir") || file["run_dir"] == "") c.run_dir.clear();
     return parse_detector_config(apply_sets_to_json(detector_config_to_json(c), sets, path), path,
                                  dir);
 }

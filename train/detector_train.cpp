@@ -267,14 +267,22 @@ public:
         s.epoch_step = s.step;  // one "epoch" of cfg.steps steps
         return s;
     }
-    /// Fine-tuning: the weights of an export, a fresh optimiser.
+    /// Fine-tuning: the weights of an export, a fresh optimiser. An export of a narrower
+    /// width (model.width a whole multiple of it) is widened keeping its function
+    /// (nn::widen_detector): more capacity from where the narrow one stopped.
     void init_from(const std::string& path) {
         const nn::LoadedDetector from = nn::load_detector(path);
-        G2L_CHECK(from.object_ids == cfg_.object_ids && from.net->config().width == cfg_.width &&
-                      from.input() == cfg_.input,
-                  "model.init '", path, "': its objects / width / input differ from the config's "
-                  "(data.object_ids, model.width, data.input)");
-        net_.load_state_dict(from.net->state_dict(), true);
+        const int w0 = from.net->config().width;
+        G2L_CHECK(from.object_ids == cfg_.object_ids && from.input() == cfg_.input,
+                  "model.init '", path, "': its objects / input differ from the config's "
+                  "(data.object_ids, data.input)");
+        G2L_CHECK(cfg_.width == w0 || (cfg_.width > w0 && cfg_.width % w0 == 0), "model.init '",
+                  path, "': its width ", w0, " is neither model.width ", cfg_.width,
+                  " nor a whole divisor of it (a narrower export is widened)");
+        if (cfg_.width == w0)
+            net_.load_state_dict(from.net->state_dict(), true);
+        else
+            nn::widen_detector(*from.net, net_, cfg_.seed ^ 0x5769646eull);
     }
     const DetectorTrainSummary& validation() const { return val_sum_; }
 

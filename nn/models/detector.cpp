@@ -106,6 +106,64 @@ DetOut Detector::forward(const Tensor& x) {
     return {heat_->forward(h), size_->forward(h), offset_->forward(h)};
 }
 
+void widen_detector(const Detector& from, Detector& wide, uint64_t seed, double spread) {
+    const DetectorConfig& a = from.config();
+    const DetectorConfig& b = wide.config();
+    G2L_CHECK(a.num_classes == b.num_classes && a.input == b.input,
+              "widen_detector: the detectors differ in classes (", a.num_classes, " vs ",
+              b.num_classes, ") or input (", to_string(a.input), " vs ", to_string(b.input), ")");
+    G2L_CHECK(b.width >= a.width && b.width % a.width == 0,
+              "widen_detector: width ", b.width, " is not a whole multiple of width ", a.width);
+    G2L_CHECK(spread >= 0 && spread < 1, "widen_detector: spread must be in [0, 1), got ", spread);
+    // Every channel count of the network is (1, 2 or 4) x width, and its one merge is an add
+    // of two maps of the same count, so "new channel i is old channel i mod n" is consistent
+    // across producer and consumer: widening every tensor dimension by that rule preserves
+    // the function once the consumers' input weights are split among the copies.
+    const std::map<std::string, Tensor> src = from.state_dict();
+    std::map<std::string, Tensor> dst = wide.state_dict();
+    Rng rng(seed);
+    for (auto& [name, t] : dst) {
+        const auto it = src.find(name);
+        G2L_CHECK(it != src.end(), "widen_detector: '", name, "' missing in the narrow detector");
+        const Tensor& s = it->second;
+        if (t.dtype() != DType::F32) {  // BatchNorm's step counter: one value, copied
+            G2L_CHECK(s.shape() == t.shape() && s.dtype() == t.dtype(), "widen_detector: '",
+                      name, "' is ", s.desc(), " -> ", t.desc());
+            autograd::NoGradGuard ng;
+            t.copy_(s);
+            continue;
+        }
+        G2L_CHECK(s.dim() == t.dim() && (t.dim() == 1 || t.dim() == 4),
+                  "widen_detector: '", name, "' has shape ", s.desc(), " -> ", t.desc());
+        const int64_t O = s.size(0), Ow = t.size(0);
+        const int64_t I = t.dim() == 4 ? s.size(1) : 1, Iw = t.dim() == 4 ? t.size(1) : 1;
+        const int64_t K = t.dim() == 4 ? s.size(2) * s.size(3) : 1;
+        G2L_CHECK(Ow % O == 0 && Iw % I == 0 && (t.dim() == 1 || t.size(2) * t.size(3) == K),
+                  "widen_detector: '", name, "' has shape ", s.desc(), " -> ", t.desc());
+        const int64_t k = Iw / I;  // copies of each input channel
+        const float* sp = s.data<float>();
+        std::vector<float> out(size_t(Ow * Iw * K));
+        for (int64_t o = 0; o < Ow; ++o)
+            for (int64_t i = 0; i < I; ++i)
+                for (int64_t e = 0; e < K; ++e) {
+                    const float v = sp[((o % O) * I + i) * K + e];
+                    // shares of the k copies: 1/k each, moved by zero-sum noise
+                    double left = 1.0;
+                    for (int64_t c = 0; c < k; ++c) {
+                        double share = left;
+                        if (c + 1 < k) {
+                            share = (1.0 + rng.uniform(-spread, spread)) / double(k);
+                            left -= share;
+                        }
+                        out[size_t((o * Iw + c * I + i) * K + e)] = float(double(v) * share);
+                    }
+                }
+        autograd::NoGradGuard ng;
+        t.copy_(Tensor::from_vector(out, t.shape()));
+    }
+    wide.load_state_dict(dst, true);
+}
+
 std::vector<Detection> decode_detections(const float* prob, const float* size,
                                          const float* offset, int K, int w, int h,
                                          float min_score, int max_per_class, int stride) {

@@ -144,6 +144,15 @@ Tensor detector_input(const DetectorFrame& frame, DetectorInput input, int downs
 Tensor detector_input(const uint8_t* rgb, int width, int height, int downscale, int* in_w,
                       int* in_h);
 
+/// Function-preserving widening (Net2Net, Chen et al. 2016): writes into `wide` (width a
+/// whole multiple k of from's, the same classes and input) weights that compute the same
+/// outputs as `from`'s, in training and in eval mode. Every channel j of a widened layer
+/// becomes k copies (j, j + n, ...), BatchNorm statistics and biases copied; the weights that
+/// read a widened layer are split among the copies with random shares that sum to one per
+/// element (drawn from `seed`, within 1/k +- spread/k), so the copies learn apart from the
+/// first step. Throws naming the widths for any other pair.
+void widen_detector(const Detector& from, Detector& wide, uint64_t seed, double spread = 0.5);
+
 /// A trained detector and what it needs at inference: the classes' object ids and the input
 /// downscale (its input kind is net->config().input). Read from a detector export (g2l_train
 /// writes <run_dir>/detector.g2l).

@@ -584,6 +584,12 @@ TEST_CASE("config: every shipped config parses", "[config]") {
         if (is_detector_config(path)) {  // "task": "detector": its own parser, round trip too
             const DetectorTrainConfig d = load_detector_config(path);
             CHECK(d.name == name);
+            // --set name= moves the run to runs/<name>, as the pose trainer's, unless run_dir
+            // is given.
+            CHECK(d.run_dir == "runs/" + name);
+            CHECK(load_detector_config(path, {"name=exp7"}).run_dir == "runs/exp7");
+            CHECK(load_detector_config(path, {"name=exp7", "run_dir=/tmp/r"}).run_dir == "/tmp/r");
+            CHECK(load_detector_config(path, {"run_dir=/tmp/r", "name=exp7"}).run_dir == "/tmp/r");
             CHECK(detector_config_to_json(parse_detector_config(detector_config_to_json(d), path,
                                                                 configs.string())) ==
                   detector_config_to_json(d));

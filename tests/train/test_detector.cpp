@@ -442,6 +442,81 @@ TEST_CASE("detector: the mirrored pass averages the two class-probability maps",
     CHECK(differs);  // the second pass changed something
 }
 
+TEST_CASE("detector: widening keeps the outputs and splits the copies", "[detector]") {
+    // A width-4 depth detector with random weights and BatchNorm statistics, widened to 8 and
+    // 12: the same heat, size and offset in eval and in training mode (batch statistics), the
+    // two copies of a channel read their inputs with different shares (they learn apart), and
+    // widths that are not a whole multiple, or other classes, are named errors.
+    nn::DetectorConfig a;
+    a.num_classes = 3;
+    a.width = 4;
+    a.input = nn::DetectorInput::depth;
+    nn::Detector narrow(a);
+    Rng rng(5);
+    {
+        autograd::NoGradGuard ng;
+        for (auto& [name, t] : narrow.state_dict()) {
+            if (t.dtype() != DType::F32) continue;  // BatchNorm's step counter
+            Tensor r = Tensor::randn(t.shape(), rng);
+            if (name.find("running_var") != std::string::npos || name.find("bn.weight") != std::string::npos)
+                for (int64_t i = 0; i < r.numel(); ++i)
+                    r.data<float>()[i] = 0.5f + std::abs(r.data<float>()[i]);
+            else
+                for (int64_t i = 0; i < r.numel(); ++i) r.data<float>()[i] *= 0.3f;
+            t.copy_(r);
+        }
+    }
+    const Tensor x = Tensor::randn({2, nn::kDepthChannels, 32, 48}, rng);
+    for (int k : {2, 3}) {
+        INFO("width x" << k);
+        nn::DetectorConfig b = a;
+        b.width = 4 * k;
+        b.seed = 77;
+        nn::Detector wide(b);
+        nn::widen_detector(narrow, wide, 9);
+        autograd::NoGradGuard ng;
+        for (bool train : {false, true}) {
+            INFO((train ? "training mode" : "eval mode"));
+            narrow.train(train);
+            wide.train(train);
+            const nn::DetOut p = narrow.forward(x), q = wide.forward(x);
+            for (const auto& [u, v] : {std::pair{p.heat, q.heat}, std::pair{p.size, q.size},
+                                       std::pair{p.offset, q.offset}}) {
+                REQUIRE(u.shape() == v.shape());
+                double worst = 0, scale = 0;
+                for (int64_t i = 0; i < u.numel(); ++i) {
+                    worst = std::max(worst, double(std::abs(u.data<float>()[i] - v.data<float>()[i])));
+                    scale = std::max(scale, double(std::abs(u.data<float>()[i])));
+                }
+                CHECK(scale > 0.1);
+                CHECK(worst < 1e-4 * std::max(1.0, scale));
+            }
+        }
+        // d4b reads d4a's 8 (narrow) -> 8k channels: copies 0 and 8 of input channel 0 sum to
+        // the narrow weight and differ.
+        const auto sd = wide.state_dict();
+        const Tensor w = sd.at("d4b.conv.weight"), w0 = narrow.state_dict().at("d4b.conv.weight");
+        REQUIRE(w.size(1) == 8 * k);
+        const int64_t kk = 9, in = w.size(1);
+        const float* wp = w.data<float>();
+        double sum = 0;
+        for (int c = 0; c < k; ++c) sum += wp[(0 * in + c * 8 + 0) * kk + 4];
+        CHECK(sum == Approx(w0.data<float>()[(0 * 8 + 0) * kk + 4]).margin(1e-6));
+        CHECK(std::abs(wp[(0 * in + 0) * kk + 4] - wp[(0 * in + 8) * kk + 4]) > 1e-6);
+        // BatchNorm statistics are copied per channel
+        CHECK(sd.at("d8a.bn.running_var").data<float>()[16 + 3] ==
+              narrow.state_dict().at("d8a.bn.running_var").data<float>()[3]);
+    }
+    nn::DetectorConfig bad = a;
+    bad.width = 6;
+    nn::Detector b6(bad);
+    REQUIRE_THROWS_WITH(nn::widen_detector(narrow, b6, 1), Contains("width 6 is not a whole multiple of width 4"));
+    bad.width = 8;
+    bad.num_classes = 4;
+    nn::Detector b4(bad);
+    REQUIRE_THROWS_WITH(nn::widen_detector(narrow, b4, 1), Contains("differ in classes (3 vs 4)"));
+}
+
 TEST_CASE("detector training: run directory, checkpoints and --resume continue the same run",
           "[detector][train]") {
     // A coloured copy of the fixture's object 8 (YCB-V models carry no colour).
@@ -546,6 +621,30 @@ TEST_CASE("detector training: run directory, checkpoints and --resume continue t
     resume_c.resume_dir = c;
     REQUIRE(train::run_detector_training(config(c), resume_c).steps == 4);
     REQUIRE(losses(c) == losses(a));
+    // model.init: fine-tuning run a's export at its width and widened to 8 sees the same first
+    // batch with the same loss (widening keeps the function); width 6 is a named error.
+    auto first_loss = [](const std::string& run) {
+        std::ifstream f(run + "/steps.jsonl");
+        for (std::string line; std::getline(f, line);) {
+            const auto j = nlohmann::json::parse(line);
+            if (j.contains("loss")) return j["loss"].get<double>();
+        }
+        return -1.0;
+    };
+    train::DetectorTrainConfig same = config(dir + "/run_init4"), wide = config(dir + "/run_init8");
+    same.init = wide.init = a + "/detector.g2l";
+    same.steps = wide.steps = 1;
+    wide.width = 8;
+    train::run_detector_training(same, quiet);
+    train::run_detector_training(wide, quiet);
+    REQUIRE(first_loss(dir + "/run_init4") > 0);
+    CHECK(first_loss(dir + "/run_init8") == Approx(first_loss(dir + "/run_init4")).epsilon(1e-4));
+    CHECK(nn::load_detector(dir + "/run_init8/detector.g2l").net->config().width == 8);
+    train::DetectorTrainConfig odd = config(dir + "/run_init6");
+    odd.init = a + "/detector.g2l";
+    odd.width = 6;
+    REQUIRE_THROWS_WITH(train::run_detector_training(odd, quiet),
+                        Contains("its width 4 is neither model.width 6 nor a whole divisor"));
 }
 
 TEST_CASE("detector training: distractor meshes and photo backgrounds", "[detector][train]") {

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <atomic>
 #include <csignal>
+#include <filesystem>
 
 #include "core/cli.h"
 #include <cstdio>
@@ -33,19 +34,23 @@ struct DistSession {
 
 namespace {
 
-/// --resume with --set: a change of what the checkpoint's weights mean (which objects the
-/// classes are and in which order, the keypoints, the widths, the heads) would load them into a
-/// network that reads them otherwise; refused, naming the key and both values. The schedule,
-/// the epochs, the learning rate and the like may change.
+/// --resume: a change of what the checkpoint's weights mean (which objects the classes are and
+/// in which order, the keypoints, the widths, the heads), by --set or by a --config other than
+/// the run's own, would load them into a network that reads them otherwise; refused, naming the
+/// key and both values. The run's config.json says what the weights were trained with. The
+/// schedule, the epochs, the learning rate and the like may change.
 void refuse_meaning_changes(const std::string& run, const std::string& cfg_path,
                             const std::vector<std::string>& sets, bool detector) {
     using json = nlohmann::json;
-    const auto as_json = [&](const std::vector<std::string>& s) {
+    const std::string saved_path = run + "/config.json";
+    if (!std::filesystem::exists(saved_path)) return;  // the trainer names what the run lacks
+    const auto as_json = [&](const std::string& path, const std::vector<std::string>& s) {
         return json::parse(detector ? g2l::train::detector_config_to_json(
-                                          g2l::train::load_detector_config(cfg_path, s))
-                                    : g2l::train::config_to_json(g2l::train::load_config(cfg_path, s)));
+                                          g2l::train::load_detector_config(path, s))
+                                    : g2l::train::config_to_json(g2l::train::load_config(path, s)));
     };
-    const json saved = as_json({}), now = as_json(sets);
+    const json saved = as_json(saved_path, {}), now = as_json(cfg_path, sets);
+    const json file = sets.empty() ? now : as_json(cfg_path, {});
     const std::vector<std::string> keys =
         detector ? std::vector<std::string>{"/data/object_ids", "/data/input", "/data/downscale",
                                             "/model/width"}
@@ -58,9 +63,14 @@ void refuse_meaning_changes(const std::string& run, const std::string& cfg_path,
         if (!saved.contains(p) || !now.contains(p) || saved.at(p) == now.at(p)) continue;
         std::string key = k.substr(1);
         for (char& c : key) c = c == '/' ? '.' : c;
-        G2L_CHECK(false, "--resume '", run, "' --set ", key, "=", now.at(p).dump(),
-                  ": the run's weights were trained with ", key, " = ", saved.at(p).dump(),
-                  " and would mean something else; start a new run (--config with a new run_dir)");
+        const bool by_set = !file.contains(p) || file.at(p) != now.at(p);
+        const std::string how = by_set ? g2l::cat(" --set ", key, "=", now.at(p).dump())
+                                       : g2l::cat(" with --config ", cfg_path, " (", key, " = ",
+                                                  now.at(p).dump(), ")");
+        G2L_CHECK(false, "--resume '", run, "'", how, ": the run's weights were trained with ",
+                  key, " = ", saved.at(p).dump(),
+                  " and would mean something else; start a new run (--config with a new "
+                  "run_dir), or resume with the run's own config.json (--resume alone)");
     }
 }
 
@@ -189,8 +199,7 @@ int train(const Job& j) {
     opt.force = j.force;
     opt.stop_flag = &g_stop;
     const bool detector = g2l::train::is_detector_config(cfg_path);  // "task": "detector"
-    if (!j.resume.empty() && !j.sets.empty())
-        refuse_meaning_changes(j.resume, cfg_path, j.sets, detector);
+    if (!j.resume.empty()) refuse_meaning_changes(j.resume, cfg_path, j.sets, detector);
     if (detector) {
         const auto dcfg = g2l::train::load_detector_config(cfg_path, j.sets);
         const auto s = g2l::train::run_detector_training(dcfg, opt);

@@ -139,8 +139,12 @@ void validate(const DetectorTrainConfig& c, const std::string& where) {
 
 }  // namespace
 
-DetectorTrainConfig parse_detector_config(const std::string& json_text, const std::string& source,
-                                          const std::string& base_dir) {
+namespace {
+
+/// The keys of a detector config with its paths resolved; run_dir stays as given (the default
+/// follows the overrides: finish_detector_config).
+DetectorTrainConfig read_detector_config(const std::string& json_text, const std::string& source,
+                                         const std::string& base_dir) {
     const nlohmann::ordered_json root = parse_json_strict_ordered(json_text, source);
     DetectorTrainConfig c;
     OrderedJsonReader k(root, source);
@@ -157,8 +161,21 @@ DetectorTrainConfig parse_detector_config(const std::string& json_text, const st
     if (!c.distractors_root.empty())
         c.distractors_root = resolve_config_path(c.distractors_root, base_dir);
     for (std::string& b : c.backgrounds) b = resolve_config_path(b, base_dir);
+    return c;
+}
+
+/// The defaults that depend on other keys, then the checks.
+void finish_detector_config(DetectorTrainConfig& c, const std::string& source) {
     if (c.run_dir.empty()) c.run_dir = "runs/" + c.name;  // as the pose trainer: cwd-relative
     validate(c, source);
+}
+
+}  // namespace
+
+DetectorTrainConfig parse_detector_config(const std::string& json_text, const std::string& source,
+                                          const std::string& base_dir) {
+    DetectorTrainConfig c = read_detector_config(json_text, source, base_dir);
+    finish_detector_config(c, source);
     return c;
 }
 
@@ -183,15 +200,14 @@ DetectorTrainConfig load_detector_config(const std::string& path,
     text << f.rdbuf();
     const std::string dir = fs::absolute(path).parent_path().lexically_normal().string();
     // As the pose trainer: overrides apply to the full config (defaults included), so any key
-    // of docs/config.md can be set even when the file leaves it out.
-    DetectorTrainConfig c = parse_detector_config(text.str(), path, dir);
-    if (sets.empty()) return c;
-    // run_dir defaults to runs/<name> after the overrides (as the pose trainer's): --set name=X
-    // moves the run to runs/X unless the file or a --set gives run_dir.
-    const json file = parse_json_strict(text.str(), path);
-    if (!file.contains("run_dir") || file["run_dir"] == "") c.run_dir.clear();
-    return parse_detector_config(apply_sets_to_json(detector_config_to_json(c), sets, path), path,
+    // of docs/config.md can be set even when the file leaves it out; run_dir defaults to
+    // runs/<name> after them (--set name=X moves the run to runs/X unless run_dir is given).
+    DetectorTrainConfig c = read_detector_config(text.str(), path, dir);
+    if (!sets.empty())
+        c = read_detector_config(apply_sets_to_json(detector_config_to_json(c), sets, path), path,
                                  dir);
+    finish_detector_config(c, path);
+    return c;
 }
 
 }  // namespace g2l::train

@@ -119,18 +119,20 @@ void widen_detector(const Detector& from, Detector& wide, uint64_t seed, double 
     // of two maps of the same count, so "new channel i is old channel i mod n" is consistent
     // across producer and consumer: widening every tensor dimension by that rule preserves
     // the function once the consumers' input weights are split among the copies.
+    // The widened tensors are made apart and loaded once: a shape that does not fit leaves
+    // `wide` as it was.
     const std::map<std::string, Tensor> src = from.state_dict();
-    std::map<std::string, Tensor> dst = wide.state_dict();
+    const std::map<std::string, Tensor> dst = wide.state_dict();
+    std::map<std::string, Tensor> widened;
     Rng rng(seed);
-    for (auto& [name, t] : dst) {
+    for (const auto& [name, t] : dst) {
         const auto it = src.find(name);
         G2L_CHECK(it != src.end(), "widen_detector: '", name, "' missing in the narrow detector");
         const Tensor& s = it->second;
         if (t.dtype() != DType::F32) {  // BatchNorm's step counter: one value, copied
             G2L_CHECK(s.shape() == t.shape() && s.dtype() == t.dtype(), "widen_detector: '",
                       name, "' is ", s.desc(), " -> ", t.desc());
-            autograd::NoGradGuard ng;
-            t.copy_(s);
+            widened.emplace(name, s.clone());
             continue;
         }
         G2L_CHECK(s.dim() == t.dim() && (t.dim() == 1 || t.dim() == 4),
@@ -158,10 +160,9 @@ void widen_detector(const Detector& from, Detector& wide, uint64_t seed, double 
                         out[size_t((o * Iw + c * I + i) * K + e)] = float(double(v) * share);
                     }
                 }
-        autograd::NoGradGuard ng;
-        t.copy_(Tensor::from_vector(out, t.shape()));
+        widened.emplace(name, Tensor::from_vector(out, t.shape()));
     }
-    wide.load_state_dict(dst, true);
+    wide.load_state_dict(widened, true);
 }
 
 std::vector<Detection> decode_detections(const float* prob, const float* size,

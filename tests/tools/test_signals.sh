@@ -61,7 +61,9 @@ ls "$T/kill" | grep -q '\.tmp' && fail "a temporary file of an interrupted write
 [ "$(last_step "$T/kill")" -eq 72 ] || fail "resumed run ended at step $(last_step "$T/kill"), not 72"
 # 3. One writer per run directory: while a run trains, --resume and --force on its directory are
 #    refused naming the process (run.lock); once it stopped, --resume goes on.
-"$TRAIN" --config "$S/configs/demo_cpu.json" --set "run_dir=$T/lock" $SETS --quiet >"$T/lock.log" 2>&1 &
+#    The run trains at model.width 0.5 (the config file says 0.25): what --resume compares against
+#    is the run's own config.json.
+"$TRAIN" --config "$S/configs/demo_cpu.json" --set "run_dir=$T/lock" --set model.width=0.5 $SETS --quiet >"$T/lock.log" 2>&1 &
 pid=$!
 i=0
 while [ ! -s "$T/lock/last.g2l" ]; do
@@ -77,14 +79,22 @@ rc=$?
 grep -q "is in use by another g2l_train (pid $pid)" "$T/lock_force.log" || fail "--force while the run trains: not refused by the lock: $(cat "$T/lock_force.log")"
 kill -TERM $pid
 wait $pid
-# --resume refuses --set changes of what the weights mean, naming the key; others go through.
-"$TRAIN" --resume "$T/lock" --set model.width=0.5 --quiet >"$T/lock_width.log" 2>&1
+# --resume refuses changes of what the weights mean, by --set or by a --config other than the
+# run's own, naming the key; others go through.
+"$TRAIN" --resume "$T/lock" --set model.width=0.25 --quiet >"$T/lock_width.log" 2>&1
 rc=$?
 [ $rc -eq 1 ] || fail "--resume --set model.width: exit $rc, expected 1"
-grep -q "set model.width=0.5: the run's weights were trained with model.width = " "$T/lock_width.log" || fail "--resume --set model.width: $(cat "$T/lock_width.log")"
+grep -q "set model.width=0.25: the run's weights were trained with model.width = 0.5" "$T/lock_width.log" || fail "--resume --set model.width: $(cat "$T/lock_width.log")"
 "$TRAIN" --resume "$T/lock" --set data.object_ids=[14,8] --quiet >"$T/lock_ids.log" 2>&1
 rc=$?
 [ $rc -eq 1 ] || fail "--resume with the object ids reordered: exit $rc, expected 1"
 grep -q "data.object_ids" "$T/lock_ids.log" || fail "--resume with the object ids reordered: $(cat "$T/lock_ids.log")"
-"$TRAIN" --resume "$T/lock" --max-steps 40 --quiet >"$T/lock_after.log" 2>&1 || fail "--resume after the run stopped: $(cat "$T/lock_after.log")"
+"$TRAIN" --config "$S/configs/demo_cpu.json" --resume "$T/lock" --quiet >"$T/lock_cfg.log" 2>&1
+rc=$?
+[ $rc -eq 1 ] || fail "--config (width 0.25) --resume of a width-0.5 run: exit $rc, expected 1"
+grep -q "with --config .*demo_cpu.json (model.width = 0.25): the run's weights were trained with model.width = 0.5" "$T/lock_cfg.log" || fail "--config --resume of another width: $(cat "$T/lock_cfg.log")"
+l_stop=$(ckpt_step "$T/lock")
+"$TRAIN" --config "$S/configs/demo_cpu.json" --resume "$T/lock" --set model.width=0.5 --max-steps $((l_stop + 2)) --quiet >"$T/lock_after.log" 2>&1 || fail "--config --resume --set with the run's own width: $(cat "$T/lock_after.log")"
+[ "$(last_step "$T/lock")" -eq $((l_stop + 2)) ] || fail "the run stopped at $l_stop, resumed with --max-steps $((l_stop + 2)), ended at step $(last_step "$T/lock")"
+"$TRAIN" --resume "$T/lock" --max-steps $((l_stop + 4)) --quiet >"$T/lock_after2.log" 2>&1 || fail "--resume after the run stopped: $(cat "$T/lock_after2.log")"
 echo "signals: SIGTERM at step $t_log checkpointed exactly; SIGKILL at step $target lost $((s_log - s_ck)) steps; both resumed to the end"

@@ -50,6 +50,14 @@ void visit_detector(IO& io, DetectorTrainConfig& c, const std::string& source) {
         std::string scene = data::scene_config_to_json(c.scene);
         d.raw_object("scene", scene);
         c.scene = data::parse_scene_config(scene, source, "data.scene");
+        d.list("mix", c.mix, [&](IO& m, DetectorTrainConfig::SceneMix& e) {
+            m.require("prob");
+            m.require("scene");
+            m.num("prob", e.prob);
+            std::string s = data::scene_config_to_json(e.scene);
+            m.raw_object("scene", s);
+            e.scene = data::parse_scene_config(s, source, "data.mix.scene");
+        });
     });
     io.object("augment", [&](IO& a) {
         a.num("color_jitter", c.color_jitter);
@@ -110,6 +118,21 @@ void validate(const DetectorTrainConfig& c, const std::string& where) {
     G2L_CHECK(c.photo_prob == 0 || !c.backgrounds.empty(), where,
               ": 'augment.photo_prob' is ", c.photo_prob, " but 'augment.backgrounds' lists no "
               "directory of photographs");
+    double mixed = 0;
+    for (size_t i = 0; i < c.mix.size(); ++i) {
+        const DetectorTrainConfig::SceneMix& m = c.mix[i];
+        G2L_CHECK(std::isfinite(m.prob) && m.prob > 0 && m.prob <= 1, where, ": 'data.mix[", i,
+                  "].prob' must be in (0, 1], got ", m.prob);
+        mixed += m.prob;
+        const geom::Intrinsics &a = m.scene.camera, &b = c.scene.camera;
+        G2L_CHECK(a.fx == b.fx && a.fy == b.fy && a.cx == b.cx && a.cy == b.cy &&
+                      a.width == b.width && a.height == b.height,
+                  where, ": 'data.mix[", i, "].scene.camera' (", a.width, " x ", a.height,
+                  ", f ", a.fx, ") must be data.scene's camera (", b.width, " x ", b.height,
+                  ", f ", b.fx, "): the detector sees one camera");
+    }
+    G2L_CHECK(mixed <= 1 + 1e-9, where, ": the 'data.mix' probabilities sum to ", mixed,
+              ", more than 1");
     G2L_CHECK(c.distractor_colors >= 1 && c.distractor_colors <= 16, where,
               ": 'data.distractor_colors' must be in [1, 16], got ", c.distractor_colors);
     G2L_CHECK(c.distractor_ids.empty() || !c.distractors_root.empty(), where,

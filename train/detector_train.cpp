@@ -15,6 +15,7 @@
 #include <functional>
 #include <future>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "core/autograd.h"
@@ -84,9 +85,10 @@ struct DetSample {
     std::vector<DetBox> boxes;
 };
 
-// The scene at the detector's input resolution: the camera scaled by 1/downscale.
-data::SceneConfig input_scene(const DetectorTrainConfig& c) {
-    data::SceneConfig s = c.scene;
+// A scene of the config (`full`: data.scene or one of data.mix) at the detector's input
+// resolution: the camera scaled by 1/downscale.
+data::SceneConfig input_scene(const DetectorTrainConfig& c, const data::SceneConfig& full) {
+    data::SceneConfig s = full;
     const double k = 1.0 / c.downscale;
     s.camera.fx *= k, s.camera.fy *= k;
     s.camera.cx = (s.camera.cx + 0.5) * k - 0.5;
@@ -110,13 +112,14 @@ data::SceneConfig input_scene(const DetectorTrainConfig& c) {
 
 
 // What the detector trains on: the targets' meshes (models_root), the distractors' (coloured
-// copies where a mesh has no colour) and the scene at the detector's input resolution. Built
-// in place: the scene models point into its meshes.
+// copies where a mesh has no colour) and the scenes at the detector's input resolution
+// (data.scene, then data.mix's). Built in place: the scene models point into its meshes.
 struct TrainingScene {
     data::Dataset models;
     std::deque<geom::Mesh> distractor_meshes;
     std::vector<data::SceneModel> sm;
     data::SceneConfig scene;
+    std::vector<data::SceneConfig> mix;
 
     explicit TrainingScene(const DetectorTrainConfig& cfg)
         : models(data::open_bop_models(cfg.models_root, [&] {
@@ -124,7 +127,19 @@ struct TrainingScene {
               bo.obj_ids = cfg.object_ids;
               return bo;
           }())),
-          scene(input_scene(cfg)) {
+          scene(input_scene(cfg, cfg.scene)) {
+        add_models(cfg);
+        for (const DetectorTrainConfig::SceneMix& m : cfg.mix) {
+            mix.push_back(input_scene(cfg, m.scene));
+            mix.back().distractor_obj_ids = scene.distractor_obj_ids;
+        }
+    }
+    TrainingScene(const TrainingScene&) = delete;
+    TrainingScene& operator=(const TrainingScene&) = delete;
+
+private:
+    // The targets, then the distractors (into scene.distractor_obj_ids).
+    void add_models(const DetectorTrainConfig& cfg) {
         for (const int id : cfg.object_ids) {
             G2L_CHECK(models.models().count(id), "data.object_ids: no model ", id, " in ",
                       cfg.models_root);
@@ -157,8 +172,6 @@ struct TrainingScene {
         G2L_CHECK(!scene.distractor_obj_ids.empty(), "data.distractors_root '",
                   cfg.distractors_root, "': no model to use as a distractor");
     }
-    TrainingScene(const TrainingScene&) = delete;
-    TrainingScene& operator=(const TrainingScene&) = delete;
 };
 
 // Occluders: random-coloured discs and rectangles pasted over the objects; the visible masks
@@ -237,6 +250,10 @@ public:
           dc_(detector_config(cfg)), net_(dc_),
           adam_({nn::ParamGroup{"detector", net_.named_parameters()}}, adam_options(cfg)),
           gen_(ts_.scene, ts_.sm) {
+        for (size_t i = 0; i < ts_.mix.size(); ++i) {
+            mix_gens_.push_back(std::make_unique<data::SceneGenerator>(ts_.mix[i], ts_.sm));
+            mix_cum_.push_back((mix_cum_.empty() ? 0.0 : mix_cum_.back()) + cfg.mix[i].prob);
+        }
         G2L_CHECK(W_ % 16 == 0 && H_ % 16 == 0, "data.scene.camera: the detector input ", W_,
                   " x ", H_, " (camera / downscale) must be a multiple of 16 in both sizes");
         for (size_t i = 0; i < cfg.object_ids.size(); ++i) cls_[cfg.object_ids[i]] = int(i);
@@ -389,7 +406,8 @@ private:
         data::RenderedFrame fr;
         for (int64_t b = lo_; b < hi_; ++b) {
             if (interrupt_now(opt_)) throw StepInterrupted();
-            gen_.render_frame(s * cfg_.batch + b, fr, 1);
+            const int64_t image = s * cfg_.batch + b;
+            scene_of(image).render_frame(image, fr, 1);
             DetSample& d = batch[size_t(b - lo_)];
             d.rgb = fr.rgb;
             if (nn::uses_depth(cfg_.input)) d.depth = fr.depth;
@@ -420,6 +438,17 @@ private:
             d.boxes = visible_boxes(fr, vis, W_, H_, cls_, cfg_.min_visib_fract);
         }
         return batch;
+    }
+
+    // The scene image `image` is drawn from: data.mix[i] with its probability, else data.scene;
+    // a function of (seed, image) alone.
+    data::SceneGenerator& scene_of(int64_t image) {
+        if (mix_gens_.empty()) return gen_;
+        Rng pick(mix_seed(mix_seed(cfg_.seed, 0x313C), uint64_t(image)));
+        const double u = pick.uniform();
+        for (size_t i = 0; i < mix_gens_.size(); ++i)
+            if (u < mix_cum_[i]) return *mix_gens_[i];
+        return gen_;
     }
 
     // preview_<b>.png: what the detector trains on (a depth detector: its normals as colour),
@@ -489,6 +518,8 @@ private:
     nn::Detector net_;
     nn::Adam adam_;
     data::SceneGenerator gen_;
+    std::vector<std::unique_ptr<data::SceneGenerator>> mix_gens_;  // data.mix's scenes
+    std::vector<double> mix_cum_;  // their cumulative probabilities
     DetectorTrainSummary val_sum_;
     bool previewed_ = false;
     std::future<std::vector<DetSample>> next_;  // last: joined before what make_batch reads

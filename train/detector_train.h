@@ -38,6 +38,14 @@ struct DetectorTrainConfig {
     nn::DetectorInput input = nn::DetectorInput::rgb;
     double min_visib_fract = 0.1;   ///< less visible instances get no target
     data::SceneConfig scene;        ///< at full resolution (the camera of the real images)
+    /// Other scenes mixed in (data.mix): each training image comes from mix[i].scene with
+    /// probability mix[i].prob, else from `scene` (probabilities summing to at most 1; the
+    /// same camera as `scene`). A stage that learns new scenes while it keeps the old ones.
+    struct SceneMix {
+        double prob = 0;
+        data::SceneConfig scene;
+    };
+    std::vector<SceneMix> mix;
     /// Unannotated distractor objects (scene.distractors_min/max per frame): the models of this
     /// BOP root ("" = none), each in `distractor_colors` random colourings (meshes without
     /// colours get them; coloured meshes keep theirs and give one variant).

@@ -235,6 +235,19 @@ TEST_CASE("detector: bad configs, shapes and exports are named errors", "[detect
                         Contains("'data.distractor_ids' is set but 'data.distractors_root' is empty"));
     REQUIRE_THROWS_WITH(parse(R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1], "distractors_root": "/d", "distractor_colors": 0}})"),
                         Contains("'data.distractor_colors' must be in [1, 16], got 0"));
+    // data.mix: probabilities in (0, 1] summing to at most 1, the main scene's camera, both
+    // keys given.
+    const std::string mix_head = R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1], "mix": )";
+    REQUIRE(parse(mix_head + R"([{"prob": 0.4, "scene": {"seed": 5}}]}})").mix.at(0).scene.seed == 5);
+    REQUIRE_THROWS_WITH(parse(mix_head + R"([{"prob": 0, "scene": {}}]}})"),
+                        Contains("'data.mix[0].prob' must be in (0, 1], got 0"));
+    REQUIRE_THROWS_WITH(parse(mix_head + R"([{"prob": 0.6, "scene": {}}, {"prob": 0.6, "scene": {}}]}})"),
+                        Contains("the 'data.mix' probabilities sum to 1.2, more than 1"));
+    REQUIRE_THROWS_WITH(parse(mix_head + R"([{"prob": 0.5, "scene": {"camera": {"fx": 500, "fy": 500, "cx": 320, "cy": 240, "width": 640, "height": 480}}}]}})"),
+                        Contains("'data.mix[0].scene.camera' (640 x 480, f 500) must be data.scene's camera"));
+    REQUIRE_THROWS_WITH(parse(mix_head + R"([{"prob": 0.5}]}})"), Contains("'data.mix[0].scene' is required"));
+    REQUIRE_THROWS_WITH(parse(mix_head + R"([{"prob": 0.5, "scene": {}, "weight": 1}]}})"),
+                        Contains("unknown key 'data.mix[0].weight'"));
 
     nn::DetectorConfig dc;
     dc.num_classes = 2;
@@ -640,6 +653,27 @@ TEST_CASE("detector training: run directory, checkpoints and --resume continue t
     REQUIRE(first_loss(dir + "/run_init4") > 0);
     CHECK(first_loss(dir + "/run_init8") == Approx(first_loss(dir + "/run_init4")).epsilon(1e-4));
     CHECK(nn::load_detector(dir + "/run_init8/detector.g2l").net->config().width == 8);
+    // data.mix: every image from a mixed-in scene (prob 1) is the run of that scene alone, to
+    // the bit; not the run of data.scene.
+    {
+        train::DetectorTrainConfig seven = config(dir + "/run_seven"), mixed = config(dir + "/run_mix");
+        seven.scene.seed = 7;
+        seven.steps = mixed.steps = 2;
+        mixed.mix.push_back({1.0, seven.scene});
+        train::run_detector_training(seven, quiet);
+        train::run_detector_training(mixed, quiet);
+        REQUIRE(losses(dir + "/run_mix").size() == 2);
+        CHECK(losses(dir + "/run_mix") == losses(dir + "/run_seven"));
+        const std::vector<std::string> all_a = losses(a);
+        const std::vector<std::string> first2(all_a.begin(), all_a.begin() + 2);
+        CHECK(losses(dir + "/run_mix") != first2);
+        // Written to config.json and read back: the same mix.
+        const train::DetectorTrainConfig back =
+            train::load_detector_config(dir + "/run_mix/config.json");
+        REQUIRE(back.mix.size() == 1);
+        CHECK(back.mix[0].prob == 1.0);
+        CHECK(back.mix[0].scene.seed == 7);
+    }
     train::DetectorTrainConfig odd = config(dir + "/run_init6");
     odd.init = a + "/detector.g2l";
     odd.width = 6;

@@ -250,10 +250,8 @@ public:
           dc_(detector_config(cfg)), net_(dc_),
           adam_({nn::ParamGroup{"detector", net_.named_parameters()}}, adam_options(cfg)),
           gen_(ts_.scene, ts_.sm) {
-        for (size_t i = 0; i < ts_.mix.size(); ++i) {
-            mix_gens_.push_back(std::make_unique<data::SceneGenerator>(ts_.mix[i], ts_.sm));
-            mix_cum_.push_back((mix_cum_.empty() ? 0.0 : mix_cum_.back()) + cfg.mix[i].prob);
-        }
+        for (const data::SceneConfig& m : ts_.mix)
+            mix_gens_.push_back(std::make_unique<data::SceneGenerator>(m, ts_.sm));
         G2L_CHECK(W_ % 16 == 0 && H_ % 16 == 0, "data.scene.camera: the detector input ", W_,
                   " x ", H_, " (camera / downscale) must be a multiple of 16 in both sizes");
         for (size_t i = 0; i < cfg.object_ids.size(); ++i) cls_[cfg.object_ids[i]] = int(i);
@@ -446,8 +444,9 @@ private:
         if (mix_gens_.empty()) return gen_;
         Rng pick(mix_seed(mix_seed(cfg_.seed, 0x313C), uint64_t(image)));
         const double u = pick.uniform();
+        double below = 0;  // the probabilities of the mixed scenes before i, and i's
         for (size_t i = 0; i < mix_gens_.size(); ++i)
-            if (u < mix_cum_[i]) return *mix_gens_[i];
+            if (u < (below += cfg_.mix[i].prob)) return *mix_gens_[i];
         return gen_;
     }
 
@@ -519,7 +518,6 @@ private:
     nn::Adam adam_;
     data::SceneGenerator gen_;
     std::vector<std::unique_ptr<data::SceneGenerator>> mix_gens_;  // data.mix's scenes
-    std::vector<double> mix_cum_;  // their cumulative probabilities
     DetectorTrainSummary val_sum_;
     bool previewed_ = false;
     std::future<std::vector<DetSample>> next_;  // last: joined before what make_batch reads

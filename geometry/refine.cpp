@@ -104,23 +104,131 @@ double fit_with(const ModelKdTree& tree, const ClosestPointGrid* grid, bool exac
 }
 
 struct Icp {
+    using Mat6 = Eigen::Matrix<double, 6, 6>;
+    using Vec6 = Eigen::Matrix<double, 6, 1>;
     const ModelKdTree& tree;
     const Points& obs;
     const Points* normals;  // point-to-plane when set
     double cap_mm;
     Points M, Q;   // scratch pairs (point-to-point only)
     std::vector<float> d;
+    std::vector<int> idx;
+    std::vector<int> hint;  // exact passes: each observed point's nearest model point last pass
 
     // `iters` ICP steps from `pose` (nearest points from `grid` when set and not `exact`, else
     // the k-d tree's); returns the fit of the final pose, measured the same way.
     double run(Pose& pose, int iters, const ClosestPointGrid* grid, bool exact) {
+        return normals ? run_plane(pose, iters, grid, exact) : run_point(pose, iters, grid, exact);
+    }
+
+    // One pass over the observed points at `pose`: the fit (as fit_with) and, when `A` is set,
+    // point-to-plane's normal equations over the inliers (pairs within cap_mm; a tighter,
+    // median-based cut keeps only the points that already lie on the surface, and a pose slid
+    // along a flat face stays there), their count to *m. In the model frame x = R^T (q - t)
+    // moves to dR x + dt with dR = I + [w]x; minimise sum ((x - m_i).n_i + w.(x x n_i) + dt.n_i)^2.
+    double plane_pass(const Pose& pose, const ClosestPointGrid* grid, bool exact, Mat6* A, Vec6* b,
+                      int64_t* m) {
         const int64_t n = obs.rows();
-        if (!normals) {  // the pairs of point-to-point's Kabsch
-            M.resize(n, 3);
-            Q.resize(n, 3);
+        if (n == 0) return cap_mm;
+        const Points& mp = tree.points();
+        const Eigen::Matrix3f Rt = pose.R.transpose().cast<float>();
+        const Eigen::Vector3f t = pose.t.cast<float>();
+        const Eigen::Matrix3d Rtd = pose.R.transpose();
+        Mat6 AA = Mat6::Zero();
+        Vec6 bb = Vec6::Zero();
+        double sum = 0;
+        int64_t k = 0;
+        for (int64_t i = 0; i < n; ++i) {
+            const Eigen::Vector3f q = obs.row(i).transpose();
+            int j = 0;
+            const Eigen::Vector3f xf = Rt * (q - t);
+            const float di = grid && exact ? nearest_hinted(*grid, xf, &hint[size_t(i)], &j)
+                                           : nearest_of(tree, grid, exact, xf, &j);
+            sum += std::min<double>(cap_mm, di);
+            if (!A || di > cap_mm) continue;
+            const Eigen::Vector3d x = Rtd * (q.cast<double>() - pose.t);
+            const Eigen::Vector3d mi = mp.row(j).transpose().cast<double>();
+            const Eigen::Vector3d ni = normals->row(j).transpose().cast<double>();
+            Vec6 J;
+            J << x.cross(ni), ni;
+            AA += J * J.transpose();
+            bb -= J * ((x - mi).dot(ni));
+            ++k;
         }
+        if (A) {
+            *A = AA;
+            *b = bb;
+            *m = k;
+        }
+        return sum / double(n);
+    }
+
+    // The exact nearest model point of x (model frame), as nearest_of's exact road, found in
+    // the grid's buckets within the nearer of the grid cell's point and *hint (the point this
+    // observed point had in the previous pass: the pose moved little, so it mostly is the
+    // nearest one again, and the ball the buckets must cover shrinks to the true distance). A
+    // point with no model point within the inlier cap gets a distance beyond the cap (its
+    // exact value matters to no one: the fit caps it and the step leaves it out), so no search
+    // reaches farther than the cap. *hint becomes the answer.
+    float nearest_hinted(const ClosestPointGrid& grid, const Eigen::Vector3f& x, int* hint,
+                         int* index) const {
+        const Points& mp = tree.points();
+        float bound = std::numeric_limits<float>::infinity();
+        int cand = -1;
+        if (const int k = grid.lookup(x); k >= 0) {
+            bound = (x - mp.row(k).transpose()).norm();
+            cand = k;
+        }
+        if (*hint >= 0) {
+            const float dh = (x - mp.row(*hint).transpose()).norm();
+            if (dh < bound) bound = dh, cand = *hint;
+        }
+        const float beyond_cap = float(cap_mm) * (1.f + 1e-5f) + 1e-3f;
+        const float b = std::min(bound, beyond_cap);
+        float d = grid.nearest_below(x, b * (1.f + 1e-5f) + 1e-6f, index);
+        if (!std::isfinite(d)) {  // nothing within b: no model point within the cap
+            *index = cand >= 0 ? cand : 0;
+            d = cand >= 0 ? bound : std::numeric_limits<float>::infinity();
+        }
+        *hint = *index;
+        return d;
+    }
+
+    double run_plane(Pose& pose, int iters, const ClosestPointGrid* grid, bool exact) {
+        if (grid && exact) hint.assign(size_t(obs.rows()), -1);
+        Mat6 A;
+        Vec6 b;
+        int64_t m = 0;
+        for (int it = 0;; ++it) {
+            const bool last = it >= iters;
+            const double fit = plane_pass(pose, grid, exact, last ? nullptr : &A, &b, &m);
+            if (last || m < 3) return fit;
+            A.diagonal().array() += 1e-6 * double(m);  // damping: flat or round surfaces
+            const Vec6 sol = A.ldlt().solve(b);
+            if (!sol.allFinite()) return fit;
+            const Eigen::Vector3d w = sol.head<3>(), dtm = sol.tail<3>();
+            const double ang = w.norm();
+            const Eigen::Matrix3d dR = ang > 1e-12 ? Eigen::AngleAxisd(ang, w / ang).toRotationMatrix()
+                                                   : Eigen::Matrix3d::Identity();
+            // New inverse pose dR R^T (q - t) + dt = R'^T (q - t') with R' = R dR^T,
+            // t' = t - R' dt.
+            Pose next;
+            next.R = pose.R * dR.transpose();
+            next.t = pose.t - next.R * dtm;
+            const bool settled = (next.R - pose.R).cwiseAbs().maxCoeff() < 1e-5 &&
+                                 (next.t - pose.t).norm() < 1e-3;
+            pose = next;
+            if (settled) return plane_pass(pose, grid, exact, nullptr, nullptr, nullptr);
+        }
+    }
+
+    // Point-to-point: Kabsch over the inlier pairs.
+    double run_point(Pose& pose, int iters, const ClosestPointGrid* grid, bool exact) {
+        const int64_t n = obs.rows();
+        M.resize(n, 3);
+        Q.resize(n, 3);
         d.resize(size_t(n));
-        std::vector<int> idx(static_cast<size_t>(n));
+        idx.resize(size_t(n));
         const Points& mp = tree.points();
         for (int it = 0; it < iters; ++it) {
             const Eigen::Matrix3f Rt = pose.R.transpose().cast<float>();
@@ -129,54 +237,15 @@ struct Icp {
                 const Eigen::Vector3f q = obs.row(i).transpose();
                 d[size_t(i)] = nearest_of(tree, grid, exact, Rt * (q - t), &idx[size_t(i)]);
             }
-            // Inliers: pairs within cap_mm. (A tighter, median-based cut keeps only the points
-            // that already lie on the surface, and a pose slid along a flat face stays there.)
-            const double thr = cap_mm;
             int64_t m = 0;
             for (int64_t i = 0; i < n; ++i) {
-                if (d[size_t(i)] > thr) continue;
-                if (!normals) {
-                    M.row(m) = mp.row(idx[size_t(i)]);
-                    Q.row(m) = obs.row(i);
-                }
+                if (d[size_t(i)] > cap_mm) continue;
+                M.row(m) = mp.row(idx[size_t(i)]);
+                Q.row(m) = obs.row(i);
                 ++m;
             }
             if (m < 3) break;
-            Pose next;
-            if (normals) {
-                // Point-to-plane in the model frame: x = R^T (q - t) moves to dR x + dt with
-                // dR = I + [w]x; minimise sum ((x - m_i) . n_i + w . (x x n_i) + dt . n_i)^2.
-                Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
-                Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
-                const Eigen::Matrix3d Rtd = pose.R.transpose();
-                int64_t k = 0;
-                for (int64_t i = 0; i < n; ++i) {
-                    if (d[size_t(i)] > thr) continue;
-                    const Eigen::Vector3d x = Rtd * (obs.row(i).transpose().cast<double>() - pose.t);
-                    const Eigen::Vector3d mi = mp.row(idx[size_t(i)]).transpose().cast<double>();
-                    const Eigen::Vector3d ni = normals->row(idx[size_t(i)]).transpose().cast<double>();
-                    Eigen::Matrix<double, 6, 1> J;
-                    J << x.cross(ni), ni;
-                    A += J * J.transpose();
-                    b -= J * ((x - mi).dot(ni));
-                    ++k;
-                }
-                A.diagonal().array() += 1e-6 * double(k);  // damping: flat or round surfaces
-                const Eigen::Matrix<double, 6, 1> sol = A.ldlt().solve(b);
-                if (!sol.allFinite()) break;
-                const Eigen::Vector3d w = sol.head<3>(), dtm = sol.tail<3>();
-                const double ang = w.norm();
-                const Eigen::Matrix3d dR =
-                    ang > 1e-12 ? Eigen::AngleAxisd(ang, w / ang).toRotationMatrix()
-                                : Eigen::Matrix3d::Identity();
-                // New inverse pose dR R^T (q - t) + dt = R'^T (q - t') with R' = R dR^T,
-                // t' = t - R' dt.
-                next.R = pose.R * dR.transpose();
-                next.t = pose.t - next.R * dtm;
-            } else {
-                const Points Mm = M.topRows(m), Qm = Q.topRows(m);
-                next = kabsch_pose(Mm, Qm);
-            }
+            const Pose next = kabsch_pose(Points(M.topRows(m)), Points(Q.topRows(m)));
             const double dR = (next.R - pose.R).cwiseAbs().maxCoeff();
             const double dt = (next.t - pose.t).norm();
             pose = next;
@@ -277,6 +346,42 @@ ClosestPointGrid::ClosestPointGrid(const ModelKdTree& tree, double cell_mm, doub
     inv_cell_ = float(1.0 / cell_mm);
     nx_ = nx, ny_ = ny, nz_ = nz;
     tree_points_ = tree.size();
+    // The buckets: cubes of at least 4 mm (a couple of the 2 mm surface samples across), over
+    // the points' box, at most ~2^18 of them.
+    {
+        const Eigen::Vector3f plo = p.colwise().minCoeff().transpose();
+        const Eigen::Vector3f ext = p.colwise().maxCoeff().transpose() - plo;
+        double b = 4.0;
+        while (double(int64_t(ext.x() / b) + 1) * double(int64_t(ext.y() / b) + 1) *
+                   double(int64_t(ext.z() / b) + 1) > double(1 << 18))
+            b *= 1.25;
+        bucket_ = b;
+        bucket_lo_ = plo;
+        inv_bucket_ = float(1.0 / b);
+        bnx_ = int64_t(ext.x() * inv_bucket_) + 1;
+        bny_ = int64_t(ext.y() * inv_bucket_) + 1;
+        bnz_ = int64_t(ext.z() * inv_bucket_) + 1;
+        const int64_t np = p.rows();
+        std::vector<int64_t> of(static_cast<size_t>(np));
+        bucket_start_.assign(size_t(bnx_ * bny_ * bnz_ + 1), 0);
+        for (int64_t i = 0; i < np; ++i) {
+            int64_t c[3];
+            const int64_t nb[3] = {bnx_, bny_, bnz_};
+            for (int a = 0; a < 3; ++a)
+                c[a] = std::clamp<int64_t>(int64_t((p(i, a) - plo[a]) * inv_bucket_), 0, nb[a] - 1);
+            of[size_t(i)] = (c[2] * bny_ + c[1]) * bnx_ + c[0];
+            ++bucket_start_[size_t(of[size_t(i)] + 1)];
+        }
+        for (size_t k = 1; k < bucket_start_.size(); ++k) bucket_start_[k] += bucket_start_[k - 1];
+        std::vector<int32_t> fill(bucket_start_.begin(), bucket_start_.end() - 1);
+        bucket_row_.resize(size_t(np));
+        bucket_pts_.resize(size_t(3 * np));
+        for (int64_t i = 0; i < np; ++i) {  // rows ascending within each bucket
+            const int32_t at = fill[size_t(of[size_t(i)])]++;
+            bucket_row_[size_t(at)] = int32_t(i);
+            for (int a = 0; a < 3; ++a) bucket_pts_[size_t(3 * at + a)] = p(i, a);
+        }
+    }
     cells_.assign(size_t(nx * ny * nz), 0);
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < nz; ++z)
@@ -288,6 +393,40 @@ ClosestPointGrid::ClosestPointGrid(const ModelKdTree& tree, double cell_mm, doub
                 tree.nearest(c, &idx);
                 cells_[size_t((z * ny + y) * nx + x)] = int32_t(idx);
             }
+}
+
+float ClosestPointGrid::nearest_below(const Eigen::Vector3f& x, float bound_mm, int* index) const {
+    if (bucket_start_.empty() || !(bound_mm > 0.f)) return std::numeric_limits<float>::infinity();
+    int64_t lo[3], hi[3];
+    const int64_t n[3] = {bnx_, bny_, bnz_};
+    for (int a = 0; a < 3; ++a) {
+        const float f0 = (x[a] - bound_mm - bucket_lo_[a]) * inv_bucket_;
+        const float f1 = (x[a] + bound_mm - bucket_lo_[a]) * inv_bucket_;
+        if (!(f1 >= 0.f) || !(f0 < float(n[a]))) return std::numeric_limits<float>::infinity();
+        lo[a] = f0 > 0.f ? int64_t(f0) : 0;
+        hi[a] = std::min<int64_t>(n[a] - 1, int64_t(f1));
+    }
+    // The squared distance as the k-d tree sums it (x, then y, then z), so that the distances
+    // and the choice between them are the same numbers.
+    float best = bound_mm * bound_mm;
+    int found = -1;
+    const float* p = bucket_pts_.data();
+    for (int64_t z = lo[2]; z <= hi[2]; ++z)
+        for (int64_t y = lo[1]; y <= hi[1]; ++y) {
+            const int64_t row = (z * bny_ + y) * bnx_;
+            const int32_t end = bucket_start_[size_t(row + hi[0] + 1)];
+            for (int32_t i = bucket_start_[size_t(row + lo[0])]; i < end; ++i) {
+                const float dx = x[0] - p[3 * i], dy = x[1] - p[3 * i + 1], dz = x[2] - p[3 * i + 2];
+                float d2 = 0.f;
+                d2 += dx * dx;
+                d2 += dy * dy;
+                d2 += dz * dz;
+                if (d2 < best) best = d2, found = i;
+            }
+        }
+    if (found < 0) return std::numeric_limits<float>::infinity();
+    *index = bucket_row_[size_t(found)];
+    return std::sqrt(best);
 }
 
 ClosestPointGrid ClosestPointGrid::for_refine(const ModelKdTree& tree, const ModelInfo& info,
@@ -462,7 +601,7 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
         for (int64_t i = 0; i < n; ++i) {
             obs.row(i) = src.row(i * n_src / n);
         }
-        Icp icp{tree, obs, normals, cap, {}, {}, {}};
+        Icp icp{tree, obs, normals, cap, {}, {}, {}, {}, {}};
         struct Hyp { Pose pose; double fit; int index; double viol = 0; };
         // Each start is independent (its own ICP scratch): OpenMP over starts; the result does not
         // depend on the thread count.

@@ -83,6 +83,14 @@ public:
         if (ix >= nx_ || iy >= ny_ || iz >= nz_) return -1;
         return cells_[size_t((iz * ny_ + iy) * nx_ + ix)];
     }
+    /// The exact nearest model point (of the tree the grid was built over) closer than
+    /// bound_mm: its distance, its row to *index; infinity (and *index untouched) when none is.
+    /// The same answer as ModelKdTree::nearest_below (bar the order among exactly equidistant
+    /// points): it scans the model points of the buckets (cubes of bucket_mm()) the ball
+    /// touches, so a tight bound (a point known to lie near) costs a few dozen distances
+    /// instead of a descent of the k-d tree.
+    float nearest_below(const Eigen::Vector3f& x, float bound_mm, int* index) const;
+    double bucket_mm() const { return bucket_; }
     bool empty() const { return cells_.empty(); }
     double cell_mm() const { return cell_; }
     double margin_mm() const { return margin_; }
@@ -96,6 +104,15 @@ private:
     double cell_ = 0, margin_ = 0;
     int64_t nx_ = 0, ny_ = 0, nz_ = 0, tree_points_ = 0;
     std::vector<int32_t> cells_;
+    // The model points sorted into buckets (x fastest): bucket b's points are rows
+    // [bucket_start_[b], bucket_start_[b + 1]) of bucket_pts_ (x, y, z), their tree rows in
+    // bucket_row_.
+    Eigen::Vector3f bucket_lo_ = Eigen::Vector3f::Zero();
+    float inv_bucket_ = 0;
+    double bucket_ = 0;
+    int64_t bnx_ = 0, bny_ = 0, bnz_ = 0;
+    std::vector<int32_t> bucket_start_, bucket_row_;
+    std::vector<float> bucket_pts_;
 };
 
 /// A plane n . p + d = 0 in the camera frame (unit n, the camera on its positive side, d > 0).

@@ -384,6 +384,52 @@ TEST_CASE("ClosestPointGrid: near the true nearest point, outside is beyond the 
     CHECK_THROWS_WITH(ClosestPointGrid::for_refine(tree, no_diam), Contains("diameter must be > 0"));
 }
 
+TEST_CASE("ClosestPointGrid::nearest_below: the k-d tree's exact nearest point, bad input",
+          "[geometry][refine]") {
+    const Points model = bumped_box();
+    const ModelKdTree tree(model);
+    const ClosestPointGrid grid = ClosestPointGrid::for_refine(tree, compute_model_info(model));
+    CHECK(grid.bucket_mm() >= 4.0);
+    // A lattice around and through the box: with a bound above the true distance (tight, as
+    // the refinement's, or loose), the same distance as the k-d tree to the bit, and a point at
+    // that distance; with a bound below it, nothing.
+    int checked = 0, none = 0;
+    for (float x = -40; x <= 170; x += 3.7f)
+        for (float y = -30; y <= 100; y += 4.1f)
+            for (float z = -30; z <= 90; z += 3.3f) {
+                const Eigen::Vector3f q(x, y, z);
+                int kd = -1;
+                const float want = tree.nearest(q, &kd);
+                for (const float bound : {want * 1.001f + 1e-3f, want + 9.f}) {
+                    int got = -1;
+                    const float d = grid.nearest_below(q, bound, &got);
+                    REQUIRE(got >= 0);
+                    REQUIRE(got < tree.size());
+                    CHECK(d == want);
+                    CHECK((q - tree.points().row(got).transpose()).squaredNorm() ==
+                          Approx((q - tree.points().row(kd).transpose()).squaredNorm()).epsilon(1e-6));
+                    ++checked;
+                }
+                if (want > 0.5f) {
+                    int untouched = 12345;
+                    CHECK(std::isinf(grid.nearest_below(q, want * 0.99f, &untouched)));
+                    CHECK(untouched == 12345);
+                    ++none;
+                }
+            }
+    CHECK(checked > 20000);
+    CHECK(none > 5000);
+    // Far outside the points' box, a NaN point, a bound that is not > 0: nothing.
+    int i = -1;
+    CHECK(std::isinf(grid.nearest_below(Eigen::Vector3f(1000, 0, 0), 50, &i)));
+    CHECK(std::isinf(grid.nearest_below(Eigen::Vector3f(std::nanf(""), 0, 0), 50, &i)));
+    CHECK(std::isinf(grid.nearest_below(Eigen::Vector3f(0, 0, 0), 0, &i)));
+    CHECK(std::isinf(grid.nearest_below(Eigen::Vector3f(0, 0, 0), std::nanf(""), &i)));
+    CHECK(i == -1);
+    // An empty grid holds no points.
+    CHECK(std::isinf(ClosestPointGrid().nearest_below(Eigen::Vector3f(0, 0, 0), 50, &i)));
+}
+
 TEST_CASE("refine_pose: with the grid, the same poses as with the k-d tree alone",
           "[geometry][refine]") {
     const Points model = bumped_box();

@@ -62,7 +62,9 @@ struct RefineOptions {
 /// the refinement's many ICP steps (~85% of its time on the k-d tree otherwise). A point in a
 /// cell gets that cell's model point, at most sqrt(3) * cell_mm farther than its true nearest
 /// one; a point outside the grid lies farther than margin_mm from every model point. Built
-/// once per model (OpenMP over cells, one k-d tree query per cell); int32 per cell.
+/// once per model (OpenMP over cells, one k-d tree query per cell); int32 per cell. It also
+/// sorts the model points into buckets for the exact queries of the refinement's polish
+/// (nearest_below).
 class ClosestPointGrid {
 public:
     ClosestPointGrid() = default;
@@ -160,8 +162,9 @@ double fit_error(const ModelKdTree& tree, const Points& obs, const Pose& pose, d
 /// point) are given, which converges in far fewer steps along flat faces — each start ranked by its fit plus, when `depth` is given, its
 /// free-space violations. With `grid` (ClosestPointGrid::for_refine of the same tree, cached
 /// per model by the caller) the starts' ICP and ranking look nearest points up in the grid and
-/// the finalists end with opt.polish_iterations exact steps (the k-d search bounded by the grid
-/// point's distance): ~8x faster, the same poses within a fraction of a millimetre
+/// the finalists end with opt.polish_iterations exact steps (the grid's buckets searched within
+/// the distance of the grid's point or of the point's previous nearest one): ~8x faster, the
+/// same poses within a fraction of a millimetre
 /// (docs/results.md). Throws g2l::Error if obs has fewer than 3 rows, a point or the init pose
 /// is not finite, info.diameter is not > 0, or the grid was built over another tree or with a
 /// margin below the inlier cap (opt.inlier_frac * diameter).

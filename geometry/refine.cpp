@@ -130,36 +130,68 @@ struct Icp {
                       int64_t* m) {
         const int64_t n = obs.rows();
         if (n == 0) return cap_mm;
-        const Points& mp = tree.points();
         const Eigen::Matrix3f Rt = pose.R.transpose().cast<float>();
         const Eigen::Vector3f t = pose.t.cast<float>();
-        const Eigen::Matrix3d Rtd = pose.R.transpose();
-        Mat6 AA = Mat6::Zero();
-        Vec6 bb = Vec6::Zero();
+        // 1. Each point's nearest model point, and the fit.
+        d.resize(size_t(n));
+        idx.resize(size_t(n));
         double sum = 0;
-        int64_t k = 0;
         for (int64_t i = 0; i < n; ++i) {
-            const Eigen::Vector3f q = obs.row(i).transpose();
+            const Eigen::Vector3f xf = Rt * (obs.row(i).transpose() - t);
             int j = 0;
-            const Eigen::Vector3f xf = Rt * (q - t);
             const float di = grid && exact ? nearest_hinted(*grid, xf, &hint[size_t(i)], &j)
                                            : nearest_of(tree, grid, exact, xf, &j);
             sum += std::min<double>(cap_mm, di);
-            if (!A || di > cap_mm) continue;
-            const Eigen::Vector3d x = Rtd * (q.cast<double>() - pose.t);
-            const Eigen::Vector3d mi = mp.row(j).transpose().cast<double>();
-            const Eigen::Vector3d ni = normals->row(j).transpose().cast<double>();
-            Vec6 J;
-            J << x.cross(ni), ni;
-            AA += J * J.transpose();
-            bb -= J * ((x - mi).dot(ni));
-            ++k;
+            d[size_t(i)] = di;
+            idx[size_t(i)] = j;
         }
-        if (A) {
-            *A = AA;
-            *b = bb;
-            *m = k;
+        if (!A) return sum / double(n);
+        // 2. The normal equations, vectorised across the points (each lane its own partial sums;
+        //    the rounding differs from a one-by-one sum in the last bits): every point's terms,
+        //    an outlier's weighted by 0 (~1/3 of the refinement's time before, point by point).
+        const float *O = obs.data(), *MP = tree.points().data(), *NP = normals->data();
+        const float* D = d.data();
+        const int* I = idx.data();
+        const Eigen::Matrix3d R = pose.R.transpose();
+        const double r00 = R(0, 0), r01 = R(0, 1), r02 = R(0, 2), r10 = R(1, 0), r11 = R(1, 1),
+                     r12 = R(1, 2), r20 = R(2, 0), r21 = R(2, 1), r22 = R(2, 2);
+        const double t0 = pose.t.x(), t1 = pose.t.y(), t2 = pose.t.z(), cap = cap_mm;
+        // The upper triangle of A (aRC) and b.
+        double a00 = 0, a01 = 0, a02 = 0, a03 = 0, a04 = 0, a05 = 0, a11 = 0, a12 = 0, a13 = 0,
+               a14 = 0, a15 = 0, a22 = 0, a23 = 0, a24 = 0, a25 = 0, a33 = 0, a34 = 0, a35 = 0,
+               a44 = 0, a45 = 0, a55 = 0, b0 = 0, b1 = 0, b2 = 0, b3 = 0, b4 = 0, b5 = 0, in = 0;
+#pragma omp simd reduction(+ : a00, a01, a02, a03, a04, a05, a11, a12, a13, a14, a15, a22, a23, \
+                               a24, a25, a33, a34, a35, a44, a45, a55, b0, b1, b2, b3, b4, b5, in)
+        for (int64_t i = 0; i < n; ++i) {
+            const double w = double(D[i]) <= cap ? 1.0 : 0.0;
+            const int64_t j = I[i];
+            const double q0 = double(O[3 * i]) - t0, q1 = double(O[3 * i + 1]) - t1,
+                         q2 = double(O[3 * i + 2]) - t2;
+            const double x0 = r00 * q0 + r01 * q1 + r02 * q2, x1 = r10 * q0 + r11 * q1 + r12 * q2,
+                         x2 = r20 * q0 + r21 * q1 + r22 * q2;  // the model frame
+            const double n0 = NP[3 * j], n1 = NP[3 * j + 1], n2 = NP[3 * j + 2];
+            const double m0 = MP[3 * j], m1 = MP[3 * j + 1], m2 = MP[3 * j + 2];
+            // J = (x x n, n), the residual (x - m) . n.
+            const double c0 = x1 * n2 - x2 * n1, c1 = x2 * n0 - x0 * n2, c2 = x0 * n1 - x1 * n0;
+            const double r = (x0 - m0) * n0 + (x1 - m1) * n1 + (x2 - m2) * n2;
+            const double w0 = w * c0, w1 = w * c1, w2 = w * c2, w3 = w * n0, w4 = w * n1,
+                         w5 = w * n2;
+            a00 += w0 * c0, a01 += w0 * c1, a02 += w0 * c2, a03 += w0 * n0, a04 += w0 * n1,
+                a05 += w0 * n2;
+            a11 += w1 * c1, a12 += w1 * c2, a13 += w1 * n0, a14 += w1 * n1, a15 += w1 * n2;
+            a22 += w2 * c2, a23 += w2 * n0, a24 += w2 * n1, a25 += w2 * n2;
+            a33 += w3 * n0, a34 += w3 * n1, a35 += w3 * n2;
+            a44 += w4 * n1, a45 += w4 * n2;
+            a55 += w5 * n2;
+            b0 -= w0 * r, b1 -= w1 * r, b2 -= w2 * r, b3 -= w3 * r, b4 -= w4 * r, b5 -= w5 * r;
+            in += w;
         }
+        const double u[21] = {a00, a01, a02, a03, a04, a05, a11, a12, a13, a14, a15,
+                              a22, a23, a24, a25, a33, a34, a35, a44, a45, a55};
+        for (int row = 0, e = 0; row < 6; ++row)
+            for (int col = row; col < 6; ++col, ++e) (*A)(row, col) = (*A)(col, row) = u[e];
+        *b << b0, b1, b2, b3, b4, b5;
+        *m = int64_t(in);
         return sum / double(n);
     }
 

@@ -69,7 +69,7 @@ class ClosestPointGrid {
 public:
     ClosestPointGrid() = default;
     /// Throws g2l::Error if cell_mm is not finite and > 0, margin_mm is not finite and >= 0, or
-    /// the grid would exceed max_cells (naming its size).
+    /// the grid would exceed max_cells or 2^31 - 1 cells (naming its size).
     ClosestPointGrid(const ModelKdTree& tree, double cell_mm, double margin_mm,
                      int64_t max_cells = int64_t(1) << 24);
     /// For refine_pose with `opt` on the object `info`: cells of diameter / 80 (1 to 4 mm), the
@@ -92,6 +92,15 @@ public:
     /// touches, so a tight bound (a point known to lie near) costs a few dozen distances
     /// instead of a descent of the k-d tree.
     float nearest_below(const Eigen::Vector3f& x, float bound_mm, int* index) const;
+    /// The grid's raw layout, for loops that look up many points at once (see lookup).
+    struct Layout {
+        const int32_t* cells;
+        float lo[3], inv_cell;
+        int64_t nx, ny, nz;
+    };
+    Layout layout() const {
+        return {cells_.data(), {lo_.x(), lo_.y(), lo_.z()}, inv_cell_, nx_, ny_, nz_};
+    }
     double bucket_mm() const { return bucket_; }
     bool empty() const { return cells_.empty(); }
     double cell_mm() const { return cell_; }
@@ -153,6 +162,12 @@ struct RefineResult {
 /// draw spans a plane. Deterministic.
 bool fit_plane(const DepthImage& depth, int x0, int y0, int x1, int y1, double tol_mm, Plane* out,
                int max_samples = 3000, int iterations = 200);
+
+/// Connected components of `pts` under "closer than radius" (what refine_pose's clusters are):
+/// the components largest first, rows ascending in each, components of one size in the order
+/// of their first row. Throws g2l::Error if radius is not finite and > 0 or a point is not
+/// finite.
+std::vector<std::vector<int64_t>> euclidean_clusters(const Points& pts, double radius);
 
 /// Mean over `obs` (camera frame) of min(distance to the model posed at `pose`, cap_mm).
 double fit_error(const ModelKdTree& tree, const Points& obs, const Pose& pose, double cap_mm);

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <exception>
 #include <cmath>
 
 #include "core/error.h"
@@ -151,7 +152,8 @@ void FramePipeline::crop(const float* depth, const geom::Intrinsics& K,
 }
 
 void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
-                             std::vector<PoseOutcome>* io, const std::vector<Oracle>* oracles) {
+                             std::vector<PoseOutcome>* io, const std::vector<Oracle>* oracles,
+                             const geom::VerifyOptions* verify_opt) {
     std::vector<PoseOutcome>& outs = *io;
     G2L_CHECK(!oracles || oracles->size() == outs.size(), "FramePipeline::estimate: ",
               oracles ? oracles->size() : 0, " oracles for ", outs.size(), " outcomes");
@@ -160,10 +162,8 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
     // the total point count and changes the last bits, and the refinement's choice among its
     // starts can amplify those). Batching saved ~10% of a 4-object frame; reproducible poses
     // are worth more.
-    for (size_t i = 0; i < outs.size(); ++i) {
+    auto networks = [&](size_t i) {
         PoseOutcome& p = outs[i];
-        if (p.status != PoseStatus::ok) continue;
-        // 1. The networks.
         nn::PoseQuery q;
         q.crop = &p.crop;
         q.class_index = model_.class_of.at(p.obj_id);
@@ -183,16 +183,17 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
         if (!e.ok) {
             p.status = e.status == "too few crop points" ? PoseStatus::too_few_points
                                                          : PoseStatus::too_few_object_points;
-            continue;
+            return;
         }
         p.pose = e.pose;
-        // 2. Depth refinement against the mesh (geometry/refine.h).
-        if (opt_.refine == Refinement::none) continue;
-        const auto t0 = Clock::now();
+    };
+    // Depth refinement against the mesh (geometry/refine.h), then the verification.
+    auto refine = [&](size_t i) {
+        PoseOutcome& p = outs[i];
         const auto me = meshes_.find(p.obj_id);
         geom::Points obs(int64_t(p.object_rows.size()), 3);
-        for (size_t i = 0; i < p.object_rows.size(); ++i)
-            obs.row(int64_t(i)) = p.crop.row(p.object_rows[i]);
+        for (size_t k = 0; k < p.object_rows.size(); ++k)
+            obs.row(int64_t(k)) = p.crop.row(p.object_rows[k]);
         if (obs.rows() >= 3 && me != meshes_.end()) {
             const PreparedMesh& m = me->second;
             geom::RefineOptions ro;
@@ -206,14 +207,62 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
             p.refine_cluster = rr.cluster;
             p.refined = true;
         }
-        p.ms_refine = ms_since(t0);
+        if (verify_opt && me != meshes_.end()) p.check = verify(depth, K, p, *verify_opt);
+    };
+    const bool refining = opt_.refine != Refinement::none;
+    // The first box's networks on every thread (nothing else is ready to run yet); then the
+    // refinements are OpenMP tasks: while one thread runs the next box's networks (a nested,
+    // hence one-thread, team: results never depend on the thread count), the others refine the
+    // boxes before it, and refine_pose's starts are tasks of the same pool, so one box's serial
+    // parts (support plane, clusters) and last starts overlap the others' work. Each box's
+    // refinement depends only on that box: the poses are those of one box at a time.
+    size_t next = 0;
+    for (; next < outs.size(); ++next)
+        if (outs[next].status == PoseStatus::ok) {
+            networks(next++);
+            break;
+        }
+    if (!refining) {
+        for (; next < outs.size(); ++next)
+            if (outs[next].status == PoseStatus::ok) networks(next);
+        return;
     }
+    std::vector<std::exception_ptr> failed(outs.size());
+    auto guarded = [&](size_t i, auto&& step) {
+        try {
+            step(i);
+        } catch (...) {
+            failed[i] = std::current_exception();
+        }
+    };
+    // The stage's wall time less the networks run inside it, shared among the refined boxes.
+    const auto t0 = Clock::now();
+    double ms_networks = 0;
+    std::vector<size_t> refined;
+#pragma omp parallel
+#pragma omp single
+    for (size_t i = 0; i < outs.size(); ++i) {
+        if (i >= next && outs[i].status == PoseStatus::ok) {
+            const auto tn = Clock::now();
+            guarded(i, networks);
+            ms_networks += ms_since(tn);
+        }
+        if (failed[i] || outs[i].status != PoseStatus::ok) continue;
+        refined.push_back(i);
+#pragma omp task firstprivate(i)
+        guarded(i, refine);
+    }
+    for (const auto& e : failed)
+        if (e) std::rethrow_exception(e);
+    const double share = std::max(0.0, ms_since(t0) - ms_networks) / double(std::max<size_t>(1, refined.size()));
+    for (const size_t i : refined) outs[i].ms_refine = share;
 }
 
 void FramePipeline::run(const float* depth, const geom::Intrinsics& K,
-                        const std::vector<PoseRequest>& requests, std::vector<PoseOutcome>* out) {
+                        const std::vector<PoseRequest>& requests, std::vector<PoseOutcome>* out,
+                        const geom::VerifyOptions* verify_opt) {
     crop(depth, K, requests, out);
-    estimate(depth, K, out);
+    estimate(depth, K, out, nullptr, verify_opt);
 }
 
 std::array<double, ScoreModel::kFeatures> ScoreModel::features(const geom::Verification& v,

@@ -70,8 +70,14 @@ struct PoseOutcome {
     std::vector<int> object_rows;     ///< crop rows taken as object (segmentation or oracle)
     geom::Pose pose;                  ///< valid when status == ok
     int num_crop_points = 0, num_object_points = 0;
-    double ms_crop = 0, ms_seg = 0, ms_t = 0, ms_rot = 0, ms_refine = 0;
+    double ms_crop = 0, ms_seg = 0, ms_t = 0, ms_rot = 0;
+    /// The frame's refinement (and verification) wall time shared equally among its refined
+    /// boxes: a frame's boxes are refined together (FramePipeline::estimate), so one box's own
+    /// span overlaps the others' and would count the same milliseconds twice.
+    double ms_refine = 0;
     bool refined = false;             ///< a mesh refined the pose
+    /// With estimate's `verify`: the pose checked against the depth (status ok, a mesh).
+    std::optional<geom::Verification> check;
     double fit_mm = -1;               ///< the refinement's final fit (geometry/refine.h)
     int refine_hypothesis = -1, refine_cluster = -1;
     bool ok() const { return status == PoseStatus::ok; }
@@ -236,13 +242,19 @@ public:
     /// Step 1: the crop of every request (`depth_mm` is K.height x K.width, 0 = no depth).
     void crop(const float* depth_mm, const geom::Intrinsics& K,
               const std::vector<PoseRequest>& requests, std::vector<PoseOutcome>* out);
-    /// Step 2: the networks for every cropped request (one engine call each), then the refinement (when the
-    /// options ask for it and the object has a mesh). `oracles` (optional): one per outcome.
+    /// Step 2: the networks for every cropped request (one engine call each), then the
+    /// refinement (when the options ask for it and the object has a mesh) and, with `verify`,
+    /// the verification of each refined pose against the depth (PoseOutcome::check). The
+    /// boxes' refinements run together on OpenMP's threads, overlapping the next boxes'
+    /// networks; each box's result depends only on that box. `oracles` (optional): one per
+    /// outcome.
     void estimate(const float* depth_mm, const geom::Intrinsics& K,
-                  std::vector<PoseOutcome>* outcomes, const std::vector<Oracle>* oracles = nullptr);
+                  std::vector<PoseOutcome>* outcomes, const std::vector<Oracle>* oracles = nullptr,
+                  const geom::VerifyOptions* verify_opt = nullptr);
     /// crop + estimate.
     void run(const float* depth_mm, const geom::Intrinsics& K,
-             const std::vector<PoseRequest>& requests, std::vector<PoseOutcome>* out);
+             const std::vector<PoseRequest>& requests, std::vector<PoseOutcome>* out,
+             const geom::VerifyOptions* verify_opt = nullptr);
 
     /// The candidates of a frame's detections: per object its best `max_instances` scoring at
     /// least `min_detection_score`, plus each detection tried as the objects of a like shape

@@ -3,7 +3,6 @@
 // the code g2l_eval runs too) and the detector, behind a header of plain types.
 #include "g2l/pose_estimator.h"
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -258,7 +257,10 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
         r.box = {b.x, b.y, b.w, b.h};
         r.peak_x = b.peak_x, r.peak_y = b.peak_y;
     }
-    m.pipeline->run(depth, K, m.requests, &m.outcomes);
+    // Each refined pose is verified against the depth inside the pipeline, its box's
+    // refinement and verification running alongside the other boxes'.
+    const infer::HypothesisTuning& tune = m.pipeline->tuning();
+    m.pipeline->run(depth, K, m.requests, &m.outcomes, &tune.verify);
     std::vector<ObjectPose> out(boxes.size());
     for (size_t i = 0; i < boxes.size(); ++i) {
         const infer::PoseOutcome& o = m.outcomes[i];
@@ -271,15 +273,8 @@ std::vector<ObjectPose> PoseEstimator::estimate(const FrameView& f,
             p.status = PoseStatus::rejected_implausible_distance;
             continue;
         }
-        if (!o.ok() || !m.pipeline->mesh(o.obj_id)) continue;
-        const auto t0 = std::chrono::steady_clock::now();
-        const infer::HypothesisTuning& tune = m.pipeline->tuning();
-        const geom::Verification v = m.pipeline->verify(depth, K, o, tune.verify);
-        set_check(v, tune.score_model.probability(v, boxes[i].score, false), &p);
-        const double ms = std::chrono::duration<double, std::milli>(
-                              std::chrono::steady_clock::now() - t0).count();
-        p.timings.refine_ms += ms;
-        p.timings.total_ms += ms;
+        if (!o.ok() || !o.check) continue;
+        set_check(*o.check, tune.score_model.probability(*o.check, boxes[i].score, false), &p);
         if (p.score < m.options.min_pose_score) p.status = PoseStatus::rejected_low_score;
     }
     return out;

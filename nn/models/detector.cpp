@@ -239,6 +239,9 @@ void depth_features(const float* depth_mm, int w, int h, double fx, double fy, d
               ", fy ", fy, ", cx ", cx, ", cy ", cy);
     const size_t n = size_t(w) * size_t(h);
     std::vector<float> z(n);
+    // The per-pixel loops run on OpenMP's threads by rows (each pixel written once, on its own:
+    // the same features whatever the thread count).
+#pragma omp parallel for schedule(static)
     for (size_t i = 0; i < n; ++i) {
         const float v = depth_mm[i];
         z[i] = std::isfinite(v) && v > 0 ? v : 0.f;
@@ -269,6 +272,7 @@ void depth_features(const float* depth_mm, int w, int h, double fx, double fy, d
     // Normals come from the depth smoothed over (2 kNormalSmooth + 1)^2 measured pixels: the
     // sensor's per-pixel noise would otherwise swamp the slope over a few millimetres.
     std::vector<float> zs(n, 0.f);
+#pragma omp parallel for schedule(static)
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
             const size_t i = size_t(y) * size_t(w) + size_t(x);
@@ -293,6 +297,7 @@ void depth_features(const float* depth_mm, int w, int h, double fx, double fy, d
         return true;
     };
     const int s = kNormalStep, r = kReliefRadius;
+#pragma omp parallel for schedule(static)
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
             const int64_t o = int64_t(y) * out_row + x;
@@ -338,6 +343,7 @@ Tensor detector_input(const DetectorFrame& f, DetectorInput input, int downscale
     const size_t plane = size_t(H) * size_t(W);
     if (uses_rgb(input)) {
         const float norm = 1.f / float(downscale * downscale);
+#pragma omp parallel for schedule(static)
         for (int y = 0; y < h; ++y)
             for (int xx = 0; xx < w; ++xx)
                 for (int c = 0; c < 3; ++c) {
@@ -352,6 +358,7 @@ Tensor detector_input(const DetectorFrame& f, DetectorInput input, int downscale
     }
     if (uses_depth(input)) {
         std::vector<float> z(size_t(w) * size_t(h), 0.f);
+#pragma omp parallel for schedule(static)
         for (int y = 0; y < h; ++y)
             for (int xx = 0; xx < w; ++xx) {
                 float s = 0;

@@ -375,6 +375,21 @@ TEST_CASE("ClosestPointGrid: near the true nearest point, outside is beyond the 
     CHECK(worst <= lim);
     CHECK(worst > 0);  // the grid is an approximation, and the test can tell
     CHECK(grid.lookup(Eigen::Vector3f(std::nanf(""), 0, 0)) == -1);
+    // The raw layout (the refinement's vectorised lookups) indexes the same cells as lookup.
+    const ClosestPointGrid::Layout g = grid.layout();
+    REQUIRE(g.nx * g.ny * g.nz == grid.size());
+    int same = 0;
+    for (float x = -100; x <= 220; x += 9.1f)
+        for (float y = -60; y <= 120; y += 8.3f)
+            for (float z = -60; z <= 110; z += 7.7f) {
+                const float fx = (x - g.lo[0]) * g.inv_cell, fy = (y - g.lo[1]) * g.inv_cell,
+                            fz = (z - g.lo[2]) * g.inv_cell;
+                const bool in = fx >= 0 && fy >= 0 && fz >= 0 && fx < float(g.nx) &&
+                                fy < float(g.ny) && fz < float(g.nz);
+                const int k = in ? g.cells[(int64_t(fz) * g.ny + int64_t(fy)) * g.nx + int64_t(fx)] : -1;
+                same += k == grid.lookup(Eigen::Vector3f(x, y, z));
+            }
+    CHECK(same == 36 * 22 * 23);
     // Bad input names the value.
     CHECK_THROWS_WITH(ClosestPointGrid(tree, 0, 5), Contains("cell_mm must be > 0, got 0"));
     CHECK_THROWS_WITH(ClosestPointGrid(tree, 2, -1), Contains("margin_mm must be >= 0, got -1"));
@@ -475,4 +490,71 @@ TEST_CASE("refine_pose: with the grid, the same poses as with the k-d tree alone
     opt.polish_iterations = -1;
     CHECK_THROWS_WITH(refine_pose(tree, info, obs, start, opt, nullptr, &normals, &grid),
                       Contains("polish_iterations must be >= 0, got -1"));
+}
+
+TEST_CASE("euclidean_clusters: the components a brute-force search finds, in its order, bad input",
+          "[geometry][refine]") {
+    // Two boxes 30 mm apart, a line of points 6 mm apart leading away from one, a far pair, a
+    // single stray point and duplicated points: components joined by "closer than radius".
+    Points a = test::box_surface(60, 40, 30, 4, Eigen::Vector3f::Zero(), 0);
+    Points b = test::box_surface(50, 30, 30, 4, Eigen::Vector3f(90, 0, 0), 0);
+    std::vector<Eigen::Vector3f> extra;
+    for (int i = 1; i <= 12; ++i) extra.emplace_back(-6.f * float(i), 10.f, 10.f);
+    extra.emplace_back(500.f, 500.f, 500.f);
+    extra.emplace_back(503.f, 500.f, 500.f);
+    extra.emplace_back(-300.f, 0.f, 0.f);
+    Points pts(a.rows() + b.rows() + int64_t(extra.size()) + 2, 3);
+    // Interleave the sets so that component ids and row order differ.
+    int64_t r = 0, ia = 0, ib = 0;
+    while (ia < a.rows() || ib < b.rows()) {
+        if (ib < b.rows()) pts.row(r++) = b.row(ib++);
+        if (ia < a.rows()) pts.row(r++) = a.row(ia++);
+    }
+    for (const auto& e : extra) pts.row(r++) = e.transpose();
+    pts.row(r++) = a.row(3);
+    pts.row(r++) = b.row(5);
+    REQUIRE(r == pts.rows());
+    auto brute = [&](double radius) {
+        const int64_t n = pts.rows();
+        std::vector<int64_t> comp(size_t(n), -1);
+        std::vector<std::vector<int64_t>> out;
+        for (int64_t s0 = 0; s0 < n; ++s0) {
+            if (comp[size_t(s0)] >= 0) continue;
+            out.emplace_back();
+            std::vector<int64_t> stack{s0};
+            comp[size_t(s0)] = int64_t(out.size()) - 1;
+            while (!stack.empty()) {
+                const int64_t x = stack.back();
+                stack.pop_back();
+                out.back().push_back(x);
+                for (int64_t y = 0; y < n; ++y)
+                    if (comp[size_t(y)] < 0 &&
+                        (pts.row(x) - pts.row(y)).squaredNorm() < float(radius * radius)) {
+                        comp[size_t(y)] = comp[size_t(s0)];
+                        stack.push_back(y);
+                    }
+            }
+        }
+        for (auto& c : out) std::sort(c.begin(), c.end());
+        std::stable_sort(out.begin(), out.end(),
+                         [](const auto& x, const auto& y) { return x.size() > y.size(); });
+        return out;
+    };
+    for (const double radius : {2.0, 5.0, 6.5, 31.0, 2000.0}) {
+        INFO("radius " << radius);
+        const auto got = euclidean_clusters(pts, radius);
+        CHECK(got == brute(radius));
+    }
+    // 6.5 mm: the two boxes, the line joined to box a, the far pair, the stray point.
+    const auto c = euclidean_clusters(pts, 6.5);
+    REQUIRE(c.size() == 4);
+    CHECK(c[0].size() == size_t(a.rows() + 12 + 1));
+    CHECK(c[1].size() == size_t(b.rows() + 1));
+    CHECK(c[2].size() == 2);
+    CHECK(c[3].size() == 1);
+    CHECK(euclidean_clusters(Points(0, 3), 5.0).empty());
+    CHECK_THROWS_WITH(euclidean_clusters(pts, 0), Contains("radius must be > 0, got 0"));
+    Points bad = pts;
+    bad(7, 1) = std::nanf("");
+    CHECK_THROWS_WITH(euclidean_clusters(bad, 5), Contains("point 7 is not finite"));
 }

@@ -110,13 +110,15 @@ double max_rel_err(const std::vector<double>& got, const std::vector<double>& re
 
 // Awkward sizes: odd spatial sizes, asymmetric kernels / strides / padding, dilation, groups
 // (incl. depthwise), the direct 1x1 path, and sizes that span several forward tiles and dw
-// row/column tiles (Cin 64 x 3x3 -> K = 576 > 256; Cout 40 > 32).
+// row/column tiles (Cin 64 x 3x3 -> K = 576 > 256; Cout 40 > 32), a small image.
 const std::vector<ConvCase> kCases = {
     {1, 1, 5, 5, 1, 3, 3, 1, 1, 0, 0, 1, 1, 1},    {2, 3, 7, 9, 4, 3, 3, 1, 1, 1, 1, 1, 1, 1},
     {2, 4, 9, 8, 6, 3, 2, 2, 1, 1, 0, 1, 2, 2},    {1, 6, 11, 7, 6, 3, 3, 2, 2, 1, 1, 2, 2, 6},
     {3, 5, 6, 5, 7, 1, 1, 1, 1, 0, 0, 1, 1, 1},    {2, 4, 7, 7, 8, 1, 1, 2, 2, 0, 0, 1, 1, 2},
     {1, 3, 13, 10, 5, 5, 4, 3, 2, 2, 1, 1, 1, 1},  {2, 8, 6, 6, 4, 2, 2, 1, 1, 1, 1, 3, 1, 4},
     {2, 64, 20, 19, 40, 3, 3, 1, 1, 1, 1, 1, 1, 1}, {1, 2, 3, 3, 2, 5, 5, 1, 1, 1, 1, 1, 1, 1},
+    // A small image (a detector's deep layer: 300 columns, one forward tile).
+    {1, 32, 15, 20, 24, 3, 3, 1, 1, 1, 1, 1, 1, 1},
 };
 
 }  // namespace
@@ -213,7 +215,8 @@ TEST_CASE("conv2d: only the requested gradients are computed", "[nn][opsb]") {
 TEST_CASE("conv2d: results are bitwise identical with 1 and 2 threads", "[nn][opsb]") {
     for (const ConvCase& c : {ConvCase{2, 64, 33, 31, 48, 3, 3, 1, 1, 1, 1, 1, 1, 1},
                               ConvCase{2, 32, 30, 30, 40, 1, 1, 1, 1, 0, 0, 1, 1, 1},
-                              ConvCase{1, 16, 25, 27, 16, 3, 3, 2, 2, 1, 1, 1, 1, 4}}) {
+                              ConvCase{1, 16, 25, 27, 16, 3, 3, 2, 2, 1, 1, 1, 1, 4},
+                              ConvCase{1, 64, 15, 20, 64, 3, 3, 1, 1, 1, 1, 1, 1, 1}}) {
         std::vector<Tensor> runs[2];
         for (int threads = 1; threads <= 2; ++threads) {
             testing::opsa::with_threads(threads, [&] {

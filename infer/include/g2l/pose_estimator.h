@@ -90,14 +90,18 @@ enum class PoseStatus {
 /// "too few object points", "low score", "duplicate", "overlap", "implausible distance".
 G2L_API const char* to_string(PoseStatus status);
 
-/// Wall time of the stages of one box, in milliseconds. The boxes of one frame run through the
-/// networks as one batch; each box reports the batch's stage times divided by its size.
+/// Wall time of the stages of one box, in milliseconds. The boxes of one frame go through the
+/// networks one at a time; their refinements run together (alongside the next boxes'
+/// networks), so refine_ms is the frame's refinement time shared equally among its refined
+/// boxes: the boxes' total_ms add up to the frame's time, not more.
 struct PoseTimings {
     double crop_ms = 0;         ///< box centre, back-projection and 3D crop
     double segmentation_ms = 0;
     double translation_ms = 0;
     double rotation_ms = 0;     ///< blocks A, B, C and the two Kabsch fits
-    double refine_ms = 0;       ///< depth refinement (EstimatorOptions::refine), this box's own
+    /// depth refinement (EstimatorOptions::refine) and verification: this box's share of the
+    /// frame's (see above)
+    double refine_ms = 0;
     double total_ms = 0;
 };
 

@@ -16,6 +16,30 @@ namespace {
 
 const std::string kModel = std::string(G2L_SOURCE_DIR) + "/models/ycbv_sim2real.g2l";
 
+// A fixture frame as the library sees it (the depth stays alive with the view), and its
+// ground-truth boxes.
+struct FixtureFrame {
+    FixtureFrame() = default;
+    FixtureFrame(FixtureFrame&&) = default;  // the view keeps pointing at the moved buffer
+    FixtureFrame(const FixtureFrame&) = delete;
+    std::vector<uint16_t> depth;
+    g2l::FrameView view;
+    std::vector<g2l::ObjectBox> boxes;
+};
+
+FixtureFrame fixture_frame(const g2l::data::Dataset& ds, const g2l::data::Frame& f) {
+    FixtureFrame out;
+    int w = 0, h = 0;
+    out.depth = ds.load_depth(f, &w, &h);
+    out.view.width = w, out.view.height = h;
+    out.view.depth_u16 = out.depth.data();
+    out.view.depth_scale = f.depth_scale;
+    out.view.K = {f.K.fx, f.K.fy, f.K.cx, f.K.cy};
+    for (const auto& gi : f.instances)
+        out.boxes.push_back({gi.obj_id, gi.box().x, gi.box().y, gi.box().w, gi.box().h, 1.0});
+    return out;
+}
+
 }  // namespace
 
 TEST_CASE("g2l_eval's evaluation and PoseEstimator give bitwise the same poses on the same frames",
@@ -41,17 +65,8 @@ TEST_CASE("g2l_eval's evaluation and PoseEstimator give bitwise the same poses o
         g2l::PoseEstimator est(kModel, o);
         size_t k = 0, compared = 0;
         for (const auto& f : ds.frames()) {
-            int w = 0, h = 0;
-            const std::vector<uint16_t> depth = ds.load_depth(f, &w, &h);
-            g2l::FrameView v;
-            v.width = w, v.height = h;
-            v.depth_u16 = depth.data();
-            v.depth_scale = f.depth_scale;
-            v.K = {f.K.fx, f.K.fy, f.K.cx, f.K.cy};
-            std::vector<g2l::ObjectBox> boxes;
-            for (const auto& gi : f.instances)
-                boxes.push_back({gi.obj_id, gi.box().x, gi.box().y, gi.box().w, gi.box().h, 1.0});
-            const auto poses = est.estimate(v, boxes);
+            const FixtureFrame ff = fixture_frame(ds, f);
+            const auto poses = est.estimate(ff.view, ff.boxes);
             for (size_t i = 0; i < poses.size(); ++i, ++k) {
                 const auto& r = inst[k];
                 INFO("frame " << f.image_id << " object " << r.obj_id);
@@ -130,16 +145,9 @@ TEST_CASE("PoseEstimator: a box's pose does not depend on the other boxes of the
     const g2l::data::Dataset ds = g2l::data::open_bop(root, "train_real", {});
     const auto& f = ds.frames().front();
     REQUIRE(f.instances.size() >= 2);
-    int w = 0, h = 0;
-    const std::vector<uint16_t> depth = ds.load_depth(f, &w, &h);
-    g2l::FrameView v;
-    v.width = w, v.height = h;
-    v.depth_u16 = depth.data();
-    v.depth_scale = f.depth_scale;
-    v.K = {f.K.fx, f.K.fy, f.K.cx, f.K.cy};
-    std::vector<g2l::ObjectBox> boxes;
-    for (const auto& gi : f.instances)
-        boxes.push_back({gi.obj_id, gi.box().x, gi.box().y, gi.box().w, gi.box().h, 1.0});
+    const FixtureFrame ff = fixture_frame(ds, f);
+    const g2l::FrameView& v = ff.view;
+    const std::vector<g2l::ObjectBox>& boxes = ff.boxes;
     g2l::EstimatorOptions o;
     o.refine = g2l::Refinement::none;  // the networks alone: where batching would show
     g2l::PoseEstimator est(kModel, o);
@@ -159,19 +167,11 @@ TEST_CASE("PoseEstimator: a frame's boxes refined together get the poses each ge
           "[infer]") {
     const std::string root = g2l::testing::fixture_dir() + "/ycbv_mini";
     const g2l::data::Dataset ds = g2l::data::open_bop(root, "train_real", {});
-    const auto& f = ds.frames().front();
-    int w = 0, h = 0;
-    const std::vector<uint16_t> depth = ds.load_depth(f, &w, &h);
-    g2l::FrameView v;
-    v.width = w, v.height = h;
-    v.depth_u16 = depth.data();
-    v.depth_scale = f.depth_scale;
-    v.K = {f.K.fx, f.K.fy, f.K.cx, f.K.cy};
+    const FixtureFrame ff = fixture_frame(ds, ds.frames().front());
+    const g2l::FrameView& v = ff.view;
     // Both objects have meshes (8 and 14), each box twice: four refinements at once.
-    std::vector<g2l::ObjectBox> boxes;
-    for (int rep = 0; rep < 2; ++rep)
-        for (const auto& gi : f.instances)
-            boxes.push_back({gi.obj_id, gi.box().x, gi.box().y, gi.box().w, gi.box().h, 1.0});
+    std::vector<g2l::ObjectBox> boxes = ff.boxes;
+    boxes.insert(boxes.end(), ff.boxes.begin(), ff.boxes.end());
     REQUIRE(boxes.size() == 4);
     g2l::EstimatorOptions o;
     o.meshes = root + "/models";  // automatic: turns for every object with a mesh

@@ -14,6 +14,7 @@
 #endif
 
 #include "core/error.h"
+#include "core/job_pool.h"
 #include "geometry/kabsch.h"
 
 namespace g2l::geom {
@@ -23,23 +24,42 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 
 // Runs body(i) for every i in [0, n), each independent of the others (the results depend
-// neither on the thread count nor on the order): as OpenMP tasks when called inside a parallel
-// region (a frame's objects refined together, each a task, so one object's serial parts and
-// its last starts overlap another's work; see infer::FramePipeline::estimate), else as a
-// parallel loop whose threads also take the tasks nested inside it.
+// neither on the thread count nor on the order): as jobs of the calling thread's JobPool when
+// it has one (a frame's objects refined together, each a job, so one object's serial parts and
+// its last starts overlap another's work, and a thread waiting for its pieces runs other
+// objects' pieces meanwhile; see infer::FramePipeline::estimate), as OpenMP tasks inside
+// another parallel region, else as a parallel loop. body's exceptions are rethrown after all
+// the pieces ran, the lowest index's first.
 template <class Body>
 void for_each_index(int64_t n, const Body& body) {
+    std::vector<std::exception_ptr> failed(size_t(std::max<int64_t>(0, n)));
+    auto piece = [&](int64_t i) {
+        try {
+            body(i);
+        } catch (...) {
+            failed[size_t(i)] = std::current_exception();
+        }
+    };
+    if (JobPool* pool = current_job_pool()) {
+        JobPool::Group group;
+        for (int64_t i = 0; i < n; ++i) pool->submit(group, [&piece, i] { piece(i); });
+        pool->close(group);
+        pool->wait(group);
+    } else {
 #ifdef _OPENMP
-    if (omp_in_parallel()) {
-#pragma omp taskloop grainsize(1) shared(body)
-        for (int64_t i = 0; i < n; ++i) body(i);
-        return;
-    }
+        if (omp_in_parallel()) {
+#pragma omp taskloop grainsize(1) shared(piece)
+            for (int64_t i = 0; i < n; ++i) piece(i);
+        } else {
 #pragma omp parallel for schedule(dynamic, 1)
-    for (int64_t i = 0; i < n; ++i) body(i);
+            for (int64_t i = 0; i < n; ++i) piece(i);
+        }
 #else
-    for (int64_t i = 0; i < n; ++i) body(i);
+        for (int64_t i = 0; i < n; ++i) piece(i);
 #endif
+    }
+    for (const auto& e : failed)
+        if (e) std::rethrow_exception(e);
 }
 
 // The turns tried besides the identity: the 23 other proper axis permutations of the model box

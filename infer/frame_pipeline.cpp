@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "core/job_pool.h"
 #include "geometry/camera.h"
 #include "geometry/crop.h"
 #include "geometry/verify.h"
@@ -109,46 +110,61 @@ void FramePipeline::crop(const float* depth, const geom::Intrinsics& K,
     G2L_CHECK(depth != nullptr && K.width > 0 && K.height > 0,
               "FramePipeline::crop: need a depth image and its size, got ", K.width, " x ",
               K.height);
-    const int W = K.width, H = K.height;
     out->resize(requests.size());
-    for (size_t i = 0; i < requests.size(); ++i) {
-        const PoseRequest& r = requests[i];
-        const auto t0 = Clock::now();
-        PoseOutcome& p = (*out)[i];
-        p = PoseOutcome{};
-        p.obj_id = r.obj_id;
-        if (!model_.class_of.count(r.obj_id)) {
-            p.status = PoseStatus::unknown_object;
-            continue;
+    // The boxes are cropped side by side (OpenMP over the boxes; each writes only its own
+    // outcome), errors rethrown after, the first box's first.
+    const int64_t n = int64_t(requests.size());
+    std::vector<std::exception_ptr> failed(requests.size());
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int64_t i = 0; i < n; ++i) {
+        try {
+            crop_one(depth, K, requests[size_t(i)], &(*out)[size_t(i)]);
+        } catch (...) {
+            failed[size_t(i)] = std::current_exception();
         }
-        p.box = geom::clip_box(r.box, W, H);
-        if (p.box.empty()) {
-            p.status = PoseStatus::box_outside_image;
-            continue;
-        }
-        if (model_.crop == geom::CropKind::frustum) {
-            // every point of the box: no centre needed
-            p.crop = geom::depth_to_points(depth, W, H, K, p.box);
-        } else {  // the centre first: a box without depth there is not back-projected at all
-            Eigen::Vector3d c;
-            const bool have = r.centre ? (c = *r.centre, true)
-                              : r.peak_x >= 0 && r.peak_y >= 0
-                                  ? geom::peak_centre(depth, W, H, K, p.box, r.peak_x, r.peak_y, &c)
-                                  : geom::box_centre(depth, W, H, K, p.box, &c);
-            if (!have) {
-                p.status = PoseStatus::no_depth;
-                p.ms_crop = ms_since(t0);
-                continue;
-            }
-            const auto d = model_.diameter.find(r.obj_id);
-            G2L_CHECK(d != model_.diameter.end() && d->second > 0, "FramePipeline: no diameter "
-                      "for object ", r.obj_id, " (the sphere crop needs it)");
-            p.crop = geom::crop_points(model_.crop, geom::depth_to_points(depth, W, H, K, p.box), c,
-                                       model_.radius_scale * d->second);
-        }
-        p.num_crop_points = int(p.crop.rows());
-        p.ms_crop = ms_since(t0);
     }
+    for (const auto& e : failed)
+        if (e) std::rethrow_exception(e);
+}
+
+void FramePipeline::crop_one(const float* depth, const geom::Intrinsics& K, const PoseRequest& r,
+                             PoseOutcome* out) const {
+    const int W = K.width, H = K.height;
+    const auto t0 = Clock::now();
+    PoseOutcome& p = *out;
+    p = PoseOutcome{};
+    p.obj_id = r.obj_id;
+    if (!model_.class_of.count(r.obj_id)) {
+        p.status = PoseStatus::unknown_object;
+        return;
+    }
+    p.box = geom::clip_box(r.box, W, H);
+    if (p.box.empty()) {
+        p.status = PoseStatus::box_outside_image;
+        return;
+    }
+    if (model_.crop == geom::CropKind::frustum) {
+        // every point of the box: no centre needed
+        p.crop = geom::depth_to_points(depth, W, H, K, p.box);
+    } else {  // the centre first: a box without depth there is not back-projected at all
+        Eigen::Vector3d c;
+        const bool have = r.centre ? (c = *r.centre, true)
+                          : r.peak_x >= 0 && r.peak_y >= 0
+                              ? geom::peak_centre(depth, W, H, K, p.box, r.peak_x, r.peak_y, &c)
+                              : geom::box_centre(depth, W, H, K, p.box, &c);
+        if (!have) {
+            p.status = PoseStatus::no_depth;
+            p.ms_crop = ms_since(t0);
+            return;
+        }
+        const auto d = model_.diameter.find(r.obj_id);
+        G2L_CHECK(d != model_.diameter.end() && d->second > 0, "FramePipeline: no diameter "
+                  "for object ", r.obj_id, " (the sphere crop needs it)");
+        p.crop = geom::crop_points(model_.crop, geom::depth_to_points(depth, W, H, K, p.box), c,
+                                   model_.radius_scale * d->second);
+    }
+    p.num_crop_points = int(p.crop.rows());
+    p.ms_crop = ms_since(t0);
 }
 
 void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
@@ -210,12 +226,14 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
         if (verify_opt && me != meshes_.end()) p.check = verify(depth, K, p, *verify_opt);
     };
     const bool refining = opt_.refine != Refinement::none;
-    // The first box's networks on every thread (nothing else is ready to run yet); then the
-    // refinements are OpenMP tasks: while one thread runs the next box's networks (a nested,
-    // hence one-thread, team: results never depend on the thread count), the others refine the
-    // boxes before it, and refine_pose's starts are tasks of the same pool, so one box's serial
-    // parts (support plane, clusters) and last starts overlap the others' work. Each box's
-    // refinement depends only on that box: the poses are those of one box at a time.
+    // The first box's networks on every thread (nothing else is ready to run yet); then each
+    // box's refinement is a job of a JobPool the region's threads share: while one thread runs
+    // the next box's networks (a nested, hence one-thread, team: results never depend on the
+    // thread count), the others refine the boxes before it, and refine_pose's starts, finalists
+    // and cluster searches are jobs of the same pool, so one box's serial parts (support plane,
+    // clusters) and last pieces overlap the others' work, and a thread waiting for one box's
+    // pieces works on another box's meanwhile. Each box's refinement depends only on that box:
+    // the poses are those of one box at a time.
     size_t next = 0;
     for (; next < outs.size(); ++next)
         if (outs[next].status == PoseStatus::ok) {
@@ -239,18 +257,26 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
     const auto t0 = Clock::now();
     double ms_networks = 0;
     std::vector<size_t> refined;
+    JobPool pool;
+    JobPool::Group boxes;
 #pragma omp parallel
-#pragma omp single
-    for (size_t i = 0; i < outs.size(); ++i) {
-        if (i >= next && outs[i].status == PoseStatus::ok) {
-            const auto tn = Clock::now();
-            guarded(i, networks);
-            ms_networks += ms_since(tn);
+    {
+        JobPoolScope scope(pool);
+#pragma omp master
+        {
+            for (size_t i = 0; i < outs.size(); ++i) {
+                if (i >= next && outs[i].status == PoseStatus::ok) {
+                    const auto tn = Clock::now();
+                    guarded(i, networks);
+                    ms_networks += ms_since(tn);
+                }
+                if (failed[i] || outs[i].status != PoseStatus::ok) continue;
+                refined.push_back(i);
+                pool.submit(boxes, [&guarded, &refine, i] { guarded(i, refine); });
+            }
+            pool.close(boxes);
         }
-        if (failed[i] || outs[i].status != PoseStatus::ok) continue;
-        refined.push_back(i);
-#pragma omp task firstprivate(i)
-        guarded(i, refine);
+        pool.wait(boxes);
     }
     for (const auto& e : failed)
         if (e) std::rethrow_exception(e);

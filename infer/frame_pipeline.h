@@ -288,6 +288,9 @@ public:
 
 private:
     PipelineOptions resolved(const PipelineOptions& opt) const;
+    // crop() for one request (writes only *out).
+    void crop_one(const float* depth_mm, const geom::Intrinsics& K, const PoseRequest& r,
+                  PoseOutcome* out) const;
     PipelineModel model_;
     PipelineOptions opt_;
     HypothesisTuning tuning_;

@@ -181,7 +181,10 @@ void check_frame(const FrameView& f, const char* who) {
 const float* depth_in_mm(const FrameView& f, std::vector<float>& buf) {
     if (f.depth_mm) return f.depth_mm;
     buf.resize(size_t(f.width) * size_t(f.height));
-    for (size_t i = 0; i < buf.size(); ++i) buf[i] = float(double(f.depth_u16[i]) * f.depth_scale);
+    const int64_t n = int64_t(buf.size());
+    float* out = buf.data();
+#pragma omp parallel for schedule(static)
+    for (int64_t i = 0; i < n; ++i) out[i] = float(double(f.depth_u16[i]) * f.depth_scale);
     return buf.data();
 }
 

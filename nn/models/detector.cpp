@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
@@ -172,11 +173,14 @@ std::vector<Detection> decode_detections(const float* prob, const float* size,
     G2L_CHECK(K > 0 && h > 0 && w > 0 && max_per_class > 0 && stride > 0,
               "decode_detections: sizes must be > 0, got K ", K, ", ", w, " x ", h,
               ", max_per_class ", max_per_class, ", stride ", stride);
-    std::vector<Detection> all;
     const size_t plane = size_t(h) * size_t(w);
+    // Each class's peaks on its own (OpenMP over the classes), joined in class order after:
+    // the same list whatever the thread count.
+    std::vector<std::vector<Detection>> per_class(static_cast<size_t>(K));
+#pragma omp parallel for schedule(dynamic, 1)
     for (int k = 0; k < K; ++k) {
         const float* p = prob + size_t(k) * plane;
-        std::vector<Detection> mine;
+        std::vector<Detection>& mine = per_class[size_t(k)];
         for (int y = 0; y < h; ++y) {
             for (int x = 0; x < w; ++x) {
                 const float v = p[size_t(y) * size_t(w) + size_t(x)];
@@ -220,8 +224,9 @@ std::vector<Detection> decode_detections(const float* prob, const float* size,
         std::stable_sort(mine.begin(), mine.end(),
                          [](const Detection& a, const Detection& b) { return a.score > b.score; });
         if (int(mine.size()) > max_per_class) mine.resize(size_t(max_per_class));
-        all.insert(all.end(), mine.begin(), mine.end());
     }
+    std::vector<Detection> all;
+    for (const auto& mine : per_class) all.insert(all.end(), mine.begin(), mine.end());
     std::stable_sort(all.begin(), all.end(),
                      [](const Detection& a, const Detection& b) { return a.score > b.score; });
     return all;
@@ -238,7 +243,7 @@ void depth_features(const float* depth_mm, int w, int h, double fx, double fy, d
               "depth_features: the intrinsics must be finite with fx, fy > 0, got fx ", fx,
               ", fy ", fy, ", cx ", cx, ", cy ", cy);
     const size_t n = size_t(w) * size_t(h);
-    std::vector<float> z(n);
+    std::unique_ptr<float[]> z(new float[n]);  // every element written below
     // The per-pixel loops run on OpenMP's threads by rows (each pixel written once, on its own:
     // the same features whatever the thread count).
 #pragma omp parallel for schedule(static)
@@ -248,21 +253,29 @@ void depth_features(const float* depth_mm, int w, int h, double fx, double fy, d
     }
     // Summed-area tables of the measured depth and of the measured count, for the window means
     // of the normals' smoothing and of the relief.
-    std::vector<double> sz((size_t(w) + 1) * (size_t(h) + 1), 0.0), sn(sz.size(), 0.0);
+    // The two tables are built side by side (one per thread, each by the same recurrence).
+    // (Only their first row and column are zeroed: the recurrence writes every other element.)
     const size_t W1 = size_t(w) + 1;
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-            const float v = z[size_t(y) * size_t(w) + size_t(x)];
-            const size_t i = size_t(y + 1) * W1 + size_t(x + 1);
-            sz[i] = v + sz[i - 1] + sz[i - W1] - sz[i - W1 - 1];
-            sn[i] = (v > 0 ? 1.0 : 0.0) + sn[i - 1] + sn[i - W1] - sn[i - W1 - 1];
-        }
+    std::unique_ptr<double[]> sz(new double[W1 * (size_t(h) + 1)]), sn(new double[W1 * (size_t(h) + 1)]);
+#pragma omp parallel for schedule(static, 1)
+    for (int table = 0; table < 2; ++table) {
+        double* q = table == 0 ? sz.get() : sn.get();
+        std::fill(q, q + W1, 0.0);
+        for (int y = 1; y <= h; ++y) q[size_t(y) * W1] = 0.0;
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) {
+                const float v = z[size_t(y) * size_t(w) + size_t(x)];
+                const size_t i = size_t(y + 1) * W1 + size_t(x + 1);
+                q[i] = (table == 0 ? double(v) : (v > 0 ? 1.0 : 0.0)) + q[i - 1] + q[i - W1] -
+                       q[i - W1 - 1];
+            }
+    }
     // The mean measured z in the window of radius `rad` around (x, y) (the pixel's own window
     // holds at least the pixel when it is measured); 0 when none is.
     auto window_mean = [&](int x, int y, int rad) {
         const int x0 = std::max(0, x - rad), x1 = std::min(w, x + rad + 1);
         const int y0 = std::max(0, y - rad), y1 = std::min(h, y + rad + 1);
-        auto rect = [&](const std::vector<double>& q) {
+        auto rect = [&](const std::unique_ptr<double[]>& q) {
             return q[size_t(y1) * W1 + size_t(x1)] - q[size_t(y0) * W1 + size_t(x1)] -
                    q[size_t(y1) * W1 + size_t(x0)] + q[size_t(y0) * W1 + size_t(x0)];
         };
@@ -271,12 +284,12 @@ void depth_features(const float* depth_mm, int w, int h, double fx, double fy, d
     };
     // Normals come from the depth smoothed over (2 kNormalSmooth + 1)^2 measured pixels: the
     // sensor's per-pixel noise would otherwise swamp the slope over a few millimetres.
-    std::vector<float> zs(n, 0.f);
+    std::unique_ptr<float[]> zs(new float[n]);  // every element written below
 #pragma omp parallel for schedule(static)
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
             const size_t i = size_t(y) * size_t(w) + size_t(x);
-            if (z[i] > 0) zs[i] = float(window_mean(x, y, kNormalSmooth));
+            zs[i] = z[i] > 0 ? float(window_mean(x, y, kNormalSmooth)) : 0.f;
         }
     auto point = [&](int x, int y, Eigen::Vector3d* p) {
         if (x < 0 || y < 0 || x >= w || y >= h) return false;

@@ -209,8 +209,17 @@ void conv2d_fwd_cpu(const T* x, const T* w, const T* bias, T* y, const Conv2dGeo
     const int64_t cin_g = g.Cin / g.groups, cout_g = g.Cout / g.groups;
     const int64_t K = cin_g * g.kh * g.kw, P = g.Ho * g.Wo, HW = g.H * g.W;
     const bool direct = is_direct(g);
-    const int64_t nc = tile_cols(kFwdColBytes, K, int64_t(sizeof(T)), P);
-    const int64_t n_chunks = ceil_div(P, nc), n_tasks = g.B * g.groups * n_chunks;
+    int64_t nc = tile_cols(kFwdColBytes, K, int64_t(sizeof(T)), P);
+    int64_t n_chunks = ceil_div(P, nc);
+    // A small problem (an inference's one image, few tiles) is cut into a multiple of 4 tiles of
+    // about equal width, so 2 or 4 threads finish together (tiles of 2416 + 2416 + 1 ... left a
+    // thread idle for most of a layer at the detector's 1/8 and 1/16 maps). From the shapes only.
+    if (g.B * g.groups * n_chunks < 16 && P >= 64) {
+        n_chunks = (n_chunks + 3) / 4 * 4;
+        nc = (ceil_div(P, n_chunks) + 15) / 16 * 16;
+        n_chunks = ceil_div(P, nc);
+    }
+    const int64_t n_tasks = g.B * g.groups * n_chunks;
 #pragma omp parallel
     {
         // One im2col buffer per thread, reused across its tasks rather than allocated per task,

@@ -132,9 +132,11 @@ struct Icp {
     std::vector<int> hint;  // exact passes: each observed point's nearest model point last pass
 
     // `iters` ICP steps from `pose` (nearest points from `grid` when set and not `exact`, else
-    // the k-d tree's); returns the fit of the final pose, measured the same way.
-    double run(Pose& pose, int iters, const ClosestPointGrid* grid, bool exact) {
-        return normals ? run_plane(pose, iters, grid, exact) : run_point(pose, iters, grid, exact);
+    // the k-d tree's); returns the fit of the final pose, measured the same way (NaN, and one
+    // pass over the points saved, when !want_fit: a caller that goes on from the pose).
+    double run(Pose& pose, int iters, const ClosestPointGrid* grid, bool exact, bool want_fit = true) {
+        return normals ? run_plane(pose, iters, grid, exact, want_fit)
+                       : run_point(pose, iters, grid, exact, want_fit);
     }
 
     // One pass over the observed points at `pose`: the fit (as fit_with) and, when `A` is set,
@@ -277,13 +279,14 @@ struct Icp {
         return d;
     }
 
-    double run_plane(Pose& pose, int iters, const ClosestPointGrid* grid, bool exact) {
+    double run_plane(Pose& pose, int iters, const ClosestPointGrid* grid, bool exact, bool want_fit) {
         if (grid && exact) hint.assign(size_t(obs.rows()), -1);
         Mat6 A;
         Vec6 b;
         int64_t m = 0;
         for (int it = 0;; ++it) {
             const bool last = it >= iters;
+            if (last && !want_fit) return std::numeric_limits<double>::quiet_NaN();
             const double fit = plane_pass(pose, grid, exact, last ? nullptr : &A, &b, &m);
             if (last || m < 3) return fit;
             A.diagonal().array() += 1e-6 * double(m);  // damping: flat or round surfaces
@@ -301,12 +304,14 @@ struct Icp {
             const bool settled = (next.R - pose.R).cwiseAbs().maxCoeff() < 1e-5 &&
                                  (next.t - pose.t).norm() < 1e-3;
             pose = next;
-            if (settled) return plane_pass(pose, grid, exact, nullptr, nullptr, nullptr);
+            if (settled)
+                return want_fit ? plane_pass(pose, grid, exact, nullptr, nullptr, nullptr)
+                                : std::numeric_limits<double>::quiet_NaN();
         }
     }
 
     // Point-to-point: Kabsch over the inlier pairs.
-    double run_point(Pose& pose, int iters, const ClosestPointGrid* grid, bool exact) {
+    double run_point(Pose& pose, int iters, const ClosestPointGrid* grid, bool exact, bool want_fit) {
         const int64_t n = obs.rows();
         M.resize(n, 3);
         Q.resize(n, 3);
@@ -334,7 +339,8 @@ struct Icp {
             pose = next;
             if (dR < 1e-5 && dt < 1e-3) break;
         }
-        return fit_with(tree, grid, exact, obs, pose, cap_mm);
+        return want_fit ? fit_with(tree, grid, exact, obs, pose, cap_mm)
+                        : std::numeric_limits<double>::quiet_NaN();
     }
 };
 
@@ -770,7 +776,9 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
         for_each_index(int64_t(final.size()), [&](int64_t i) {
             Icp own = icp;
             Hyp& y = final[size_t(i)];
-            double fit = own.run(y.pose, opt.iterations, grid, false);
+            // With a grid the exact steps follow and measure the fit: the grid's fit of the
+            // pose they start from is not needed.
+            double fit = own.run(y.pose, opt.iterations, grid, false, /*want_fit=*/!grid);
             if (grid) fit = own.run(y.pose, opt.polish_iterations, grid, true);  // exact steps and fit
             y.fit = cost(y.pose, fit, &y.viol);
         });

@@ -11,7 +11,7 @@ namespace g2l::geom {
 
 Verification verify_pose(const ModelKdTree& tree, const ModelInfo& info, const Pose& pose,
                          const DepthImage& depth, const Points& object_points,
-                         const VerifyOptions& opt) {
+                         const VerifyOptions& opt, const ClosestPointGrid* grid) {
     const Intrinsics& K = depth.K;
     G2L_CHECK(depth.depth_mm != nullptr && K.width > 0 && K.height > 0,
               "verify_pose: need a depth image and its size, got ", K.width, " x ", K.height);
@@ -126,7 +126,13 @@ Verification verify_pose(const ModelKdTree& tree, const ModelInfo& info, const P
         const Eigen::Vector3f x = object_points.row(i * no / m).transpose();
         if (!x.allFinite()) continue;
         ++counted;
-        agree += tree.nearest(Rt * (x - t)) <= tol;
+        const Eigen::Vector3f y = Rt * (x - t);
+        if (grid) {  // the nearest model point when one lies within the tolerance (else none)
+            int idx = 0;
+            agree += grid->nearest_below(y, tol * (1.f + 1e-5f) + 1e-6f, &idx) <= tol;
+        } else {
+            agree += tree.nearest(y) <= tol;
+        }
     }
     v.seg_agree = counted ? double(agree) / double(counted) : 0.0;
 

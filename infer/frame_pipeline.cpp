@@ -423,7 +423,8 @@ geom::Verification FramePipeline::verify(const float* depth, const geom::Intrins
     for (size_t i = 0; i < o.object_rows.size(); ++i)
         obs.row(int64_t(i)) = o.crop.row(o.object_rows[i]);
     const geom::DepthImage di{depth, K};
-    return geom::verify_pose(*m->tree, m->info, o.pose, di, obs, opt);
+    return geom::verify_pose(*m->tree, m->info, o.pose, di, obs, opt,
+                             m->grid.empty() ? nullptr : &m->grid);
 }
 
 void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,

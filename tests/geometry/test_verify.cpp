@@ -120,6 +120,24 @@ TEST_CASE("verify_pose: right, in front, behind, beside, occluded, no depth", "[
     // Behind the camera: nothing visible.
     CHECK(verify_pose(tree, info, at(0, 0, -kZ - 100), di, obs, opt).visible == 0);
 
+    // With the model's closest-point grid the object points' nearest model points come from
+    // its buckets: the same agreement, to the point, for poses on, near and off the surface
+    // (seg_agree strictly between 0 and 1 in some, so the tolerance's edge is crossed).
+    {
+        const ClosestPointGrid grid(tree, 2.0, 0.1 * info.diameter);
+        int partial = 0;
+        for (const Pose& p : {at(0, 0, 0), at(0, 0, -40), at(3, -2, 5), at(0, 0, 6), at(7, 0, 0),
+                              at(20, 10, -5), at(150, 0, 0), at(0, 0, -kZ - 100)}) {
+            const Verification a = verify_pose(tree, info, p, di, obs, opt);
+            const Verification b = verify_pose(tree, info, p, di, obs, opt, &grid);
+            CHECK(a.seg_agree == b.seg_agree);
+            CHECK(a.score == b.score);
+            CHECK(a.footprint == b.footprint);
+            partial += a.seg_agree > 0 && a.seg_agree < 1;
+        }
+        CHECK(partial >= 2);
+    }
+
     // Two poses of the same place claim the same footprint; a box beside claims another one.
     CHECK(footprint_overlap(right.footprint, right.footprint) == Approx(1.0));
     const Verification shifted = verify_pose(tree, info, at(5, 0, 0), di, obs, opt);

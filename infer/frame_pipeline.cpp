@@ -240,9 +240,16 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
             networks(next++);
             break;
         }
-    if (!refining) {
+    if (!refining) {  // the networks' poses, verified as they are when asked
         for (; next < outs.size(); ++next)
             if (outs[next].status == PoseStatus::ok) networks(next);
+        if (verify_opt)
+            for (PoseOutcome& p : outs)
+                if (p.status == PoseStatus::ok && meshes_.count(p.obj_id)) {
+                    const auto tv = Clock::now();
+                    p.check = verify(depth, K, p, *verify_opt);
+                    p.ms_refine += ms_since(tv);  // verification is part of the depth stage
+                }
         return;
     }
     std::vector<std::exception_ptr> failed(outs.size());
@@ -488,16 +495,16 @@ void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
         req[0].box = h.cand.box;
         req[0].peak_x = h.cand.peak_x;
         req[0].peak_y = h.cand.peak_y;
-        run(depth, K, req, &outs);
+        // The road verifies a refined pose itself (PoseOutcome::check, part of its depth
+        // stage's time): the one place a pose is verified, whichever caller asks.
+        run(depth, K, req, &outs, &tune.verify);
         h.outcome = std::move(outs[0]);
         if (!h.outcome.ok()) continue;
-        if (mesh(h.cand.obj_id)) {
-            const auto t0 = Clock::now();
-            h.check = verify(depth, K, h.outcome, tune.verify);
+        if (h.outcome.check) {
+            h.check = *h.outcome.check;
             h.verified = true;
             h.score = tune.score_model.probability(h.check, h.cand.det_score,
                                                   h.cand.det_obj_id != h.cand.obj_id);
-            h.outcome.ms_refine += ms_since(t0);  // verification is part of the depth stage
         }
     }
     // 3. Greedy selection, best score first: a hypothesis is kept unless a kept one is the same

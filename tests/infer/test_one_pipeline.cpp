@@ -307,3 +307,29 @@ TEST_CASE("FramePipeline: candidates spend the budget on each object's best peak
     for (const auto& x : hs) CHECK(x.verdict == Verdict::low_score);
     CHECK(std::string(to_string(Verdict::overlap)) == "overlap");
 }
+
+TEST_CASE("PoseEstimator: with the meshes but no refinement, every pose is still verified",
+          "[infer]") {
+    // The road verifies a pose where it refines it; without refinement it verifies the
+    // networks' pose as it is.
+    const std::string root = g2l::testing::fixture_dir() + "/ycbv_mini";
+    const g2l::data::Dataset ds = g2l::data::open_bop(root, "train_real", {});
+    const FixtureFrame ff = fixture_frame(ds, ds.frames().front());
+    g2l::EstimatorOptions o;
+    o.meshes = root + "/models";
+    o.refine = g2l::Refinement::none;
+    o.min_pose_score = 0;  // report every verified pose, whatever its score
+    g2l::PoseEstimator est(kModel, o);
+    const auto poses = est.estimate(ff.view, ff.boxes);
+    REQUIRE(poses.size() == ff.boxes.size());
+    for (const auto& p : poses) {
+        INFO("object " << p.obj_id);
+        REQUIRE(p.ok());
+        CHECK_FALSE(p.refined);
+        CHECK(p.verified);
+        CHECK(p.check.explained >= 0);
+        CHECK(p.check.seg_agree >= 0);
+        CHECK(p.score >= 0);
+        CHECK(p.score <= 1);
+    }
+}

@@ -12,6 +12,9 @@
 #ifdef _OPENMP
 #include <omp.h>
 #endif
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
 
 #include "core/error.h"
 #include "core/job_pool.h"
@@ -167,7 +170,6 @@ struct Icp {
             float* D = d.data();
             int* I = idx.data();
             const float fnx = float(g.nx), fny = float(g.ny), fnz = float(g.nz);
-            const int nx = int(g.nx), ny = int(g.ny);
 #pragma omp simd
             for (int64_t i = 0; i < n; ++i) {
                 const float a0 = O[3 * i] - s0, a1 = O[3 * i + 1] - s1, a2 = O[3 * i + 2] - s2;
@@ -177,7 +179,7 @@ struct Icp {
                 const float fx = (x0 - g.lo[0]) * g.inv_cell, fy = (x1 - g.lo[1]) * g.inv_cell,
                             fz = (x2 - g.lo[2]) * g.inv_cell;
                 const bool in = (fx >= 0.f) & (fy >= 0.f) & (fz >= 0.f) & (fx < fnx) & (fy < fny) & (fz < fnz);
-                const int c = in ? (int(fz) * ny + int(fy)) * nx + int(fx) : 0;
+                const int c = in ? g.offset(int(fx), int(fy), int(fz)) : 0;
                 const int k = g.cells[c] & (in ? -1 : 0);
                 const float m0 = x0 - MP[3 * k], m1 = x1 - MP[3 * k + 1], m2 = x2 - MP[3 * k + 2];
                 D[i] = in ? m0 * m0 + m1 * m1 + m2 * m2 : std::numeric_limits<float>::infinity();
@@ -497,15 +499,15 @@ ClosestPointGrid::ClosestPointGrid(const ModelKdTree& tree, double cell_mm, doub
     const Eigen::Vector3f hi = p.colwise().maxCoeff().transpose().array() + float(margin_mm);
     const auto count = [&](int a) { return std::max<int64_t>(1, int64_t(std::ceil((hi[a] - lo[a]) / cell_mm))); };
     const int64_t nx = count(0), ny = count(1), nz = count(2);
-    G2L_CHECK(double(nx) * double(ny) * double(nz) <= double(std::min<int64_t>(max_cells, INT32_MAX)),
-              "ClosestPointGrid: ", nx, " x ", ny, " x ", nz, " cells of ", cell_mm,
-              " mm exceed the limit of ", std::min<int64_t>(max_cells, INT32_MAX),
+    const int64_t limit = std::min<int64_t>(max_cells, INT32_MAX);
+    G2L_CHECK(double(nx) * double(ny) * double(nz) <= double(limit), "ClosestPointGrid: ", nx,
+              " x ", ny, " x ", nz, " cells of ", cell_mm, " mm exceed the limit of ", limit,
               " (use larger cells)");
     lo_ = lo;
     cell_ = cell_mm;
     margin_ = margin_mm;
     inv_cell_ = float(1.0 / cell_mm);
-    nx_ = nx, ny_ = ny, nz_ = nz;
+    nx_ = int(nx), ny_ = int(ny), nz_ = int(nz);
     tree_points_ = tree.size();
     // The buckets: cubes of at least 4 mm (a couple of the 2 mm surface samples across), over
     // the points' box, at most ~2^18 of them.
@@ -536,14 +538,15 @@ ClosestPointGrid::ClosestPointGrid(const ModelKdTree& tree, double cell_mm, doub
         for (size_t k = 1; k < bucket_start_.size(); ++k) bucket_start_[k] += bucket_start_[k - 1];
         std::vector<int32_t> fill(bucket_start_.begin(), bucket_start_.end() - 1);
         bucket_row_.resize(size_t(np));
-        bucket_pts_.resize(size_t(3 * np));
+        bucket_pts_.resize(size_t(3 * np));  // x of every point, then y, then z
         for (int64_t i = 0; i < np; ++i) {  // rows ascending within each bucket
             const int32_t at = fill[size_t(of[size_t(i)])]++;
             bucket_row_[size_t(at)] = int32_t(i);
-            for (int a = 0; a < 3; ++a) bucket_pts_[size_t(3 * at + a)] = p(i, a);
+            for (int a = 0; a < 3; ++a) bucket_pts_[size_t(a * np + at)] = p(i, a);
         }
     }
     cells_.assign(size_t(nx * ny * nz), 0);
+    const Layout g = layout();
 #pragma omp parallel for schedule(static)
     for (int64_t z = 0; z < nz; ++z)
         for (int64_t y = 0; y < ny; ++y)
@@ -552,7 +555,7 @@ ClosestPointGrid::ClosestPointGrid(const ModelKdTree& tree, double cell_mm, doub
                                                                float(z) + 0.5f) * float(cell_mm);
                 int idx = 0;
                 tree.nearest(c, &idx);
-                cells_[size_t((z * ny + y) * nx + x)] = int32_t(idx);
+                cells_[size_t(g.offset(int(x), int(y), int(z)))] = int32_t(idx);
             }
 }
 
@@ -568,22 +571,48 @@ float ClosestPointGrid::nearest_below(const Eigen::Vector3f& x, float bound_mm, 
         hi[a] = std::min<int64_t>(n[a] - 1, int64_t(f1));
     }
     // The squared distance as the k-d tree sums it (x, then y, then z), so that the distances
-    // and the choice between them are the same numbers.
+    // and the choice between them are the same numbers; the first point at the least distance
+    // in the order of the buckets' rows (as a point-by-point scan keeps it). Each row's points
+    // are contiguous (x, y and z apart): with AVX-512, 16 distances at a time.
     float best = bound_mm * bound_mm;
     int found = -1;
-    const float* p = bucket_pts_.data();
+    const int64_t np = int64_t(bucket_row_.size());
+    const float *px = bucket_pts_.data(), *py = px + np, *pz = py + np;
+#if defined(__AVX512F__)
+    const __m512 vx = _mm512_set1_ps(x[0]), vy = _mm512_set1_ps(x[1]), vz = _mm512_set1_ps(x[2]);
+    __m512 vbest = _mm512_set1_ps(best);
+#endif
     for (int64_t z = lo[2]; z <= hi[2]; ++z)
         for (int64_t y = lo[1]; y <= hi[1]; ++y) {
             const int64_t row = (z * bny_ + y) * bnx_;
             const int32_t end = bucket_start_[size_t(row + hi[0] + 1)];
-            for (int32_t i = bucket_start_[size_t(row + lo[0])]; i < end; ++i) {
-                const float dx = x[0] - p[3 * i], dy = x[1] - p[3 * i + 1], dz = x[2] - p[3 * i + 2];
+            int32_t i = bucket_start_[size_t(row + lo[0])];
+#if defined(__AVX512F__)
+            for (; i < end; i += 16) {
+                const __mmask16 k = end - i >= 16 ? __mmask16(0xFFFF) : __mmask16((1u << (end - i)) - 1);
+                const __m512 dx = _mm512_sub_ps(vx, _mm512_maskz_loadu_ps(k, px + i));
+                const __m512 dy = _mm512_sub_ps(vy, _mm512_maskz_loadu_ps(k, py + i));
+                const __m512 dz = _mm512_sub_ps(vz, _mm512_maskz_loadu_ps(k, pz + i));
+                __m512 s = _mm512_mul_ps(dx, dx);
+                s = _mm512_fmadd_ps(dy, dy, s);
+                s = _mm512_fmadd_ps(dz, dz, s);
+                const __mmask16 lt = _mm512_mask_cmp_ps_mask(k, s, vbest, _CMP_LT_OQ);
+                if (!lt) continue;
+                best = _mm512_mask_reduce_min_ps(lt, s);
+                vbest = _mm512_set1_ps(best);
+                const __mmask16 eq = _mm512_mask_cmp_ps_mask(lt, s, vbest, _CMP_EQ_OQ);
+                found = i + __builtin_ctz(unsigned(eq));
+            }
+#else
+            for (; i < end; ++i) {
+                const float dx = x[0] - px[i], dy = x[1] - py[i], dz = x[2] - pz[i];
                 float d2 = 0.f;
                 d2 += dx * dx;
                 d2 += dy * dy;
                 d2 += dz * dz;
                 if (d2 < best) best = d2, found = i;
             }
+#endif
         }
     if (found < 0) return std::numeric_limits<float>::infinity();
     *index = bucket_row_[size_t(found)];

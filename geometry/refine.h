@@ -81,9 +81,8 @@ public:
         const float fx = (x.x() - lo_.x()) * inv_cell_, fy = (x.y() - lo_.y()) * inv_cell_,
                     fz = (x.z() - lo_.z()) * inv_cell_;
         if (!(fx >= 0.f && fy >= 0.f && fz >= 0.f)) return -1;  // also NaN
-        const int64_t ix = int64_t(fx), iy = int64_t(fy), iz = int64_t(fz);
-        if (ix >= nx_ || iy >= ny_ || iz >= nz_) return -1;
-        return cells_[size_t((iz * ny_ + iy) * nx_ + ix)];
+        if (!(fx < float(nx_) && fy < float(ny_) && fz < float(nz_))) return -1;
+        return cells_[size_t(layout().offset(int(fx), int(fy), int(fz)))];
     }
     /// The exact nearest model point (of the tree the grid was built over) closer than
     /// bound_mm: its distance, its row to *index; infinity (and *index untouched) when none is.
@@ -92,11 +91,13 @@ public:
     /// touches, so a tight bound (a point known to lie near) costs a few dozen distances
     /// instead of a descent of the k-d tree.
     float nearest_below(const Eigen::Vector3f& x, float bound_mm, int* index) const;
-    /// The grid's raw layout, for loops that look up many points at once (see lookup).
+    /// The grid's raw layout, for loops that look up many points at once (see lookup): cell
+    /// (ix, iy, iz), 0 <= ix < nx ..., is cells[offset(ix, iy, iz)] (x fastest).
     struct Layout {
         const int32_t* cells;
         float lo[3], inv_cell;
-        int64_t nx, ny, nz;
+        int nx, ny, nz;
+        int offset(int ix, int iy, int iz) const { return (iz * ny + iy) * nx + ix; }
     };
     Layout layout() const {
         return {cells_.data(), {lo_.x(), lo_.y(), lo_.z()}, inv_cell_, nx_, ny_, nz_};
@@ -105,7 +106,7 @@ public:
     bool empty() const { return cells_.empty(); }
     double cell_mm() const { return cell_; }
     double margin_mm() const { return margin_; }
-    int64_t size() const { return int64_t(cells_.size()); }
+    int64_t size() const { return int64_t(nx_) * ny_ * nz_; }
     /// Points of the k-d tree it was built over (refine_pose checks it against its tree's).
     int64_t tree_points() const { return tree_points_; }
 
@@ -113,8 +114,9 @@ private:
     Eigen::Vector3f lo_ = Eigen::Vector3f::Zero();
     float inv_cell_ = 0;
     double cell_ = 0, margin_ = 0;
-    int64_t nx_ = 0, ny_ = 0, nz_ = 0, tree_points_ = 0;
-    std::vector<int32_t> cells_;
+    int nx_ = 0, ny_ = 0, nz_ = 0;
+    int64_t tree_points_ = 0;
+    std::vector<int32_t> cells_;  // x fastest (Layout::offset)
     // The model points sorted into buckets (x fastest): bucket b's points are rows
     // [bucket_start_[b], bucket_start_[b + 1]) of bucket_pts_ (x, y, z), their tree rows in
     // bucket_row_.

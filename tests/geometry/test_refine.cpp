@@ -377,7 +377,7 @@ TEST_CASE("ClosestPointGrid: near the true nearest point, outside is beyond the 
     CHECK(grid.lookup(Eigen::Vector3f(std::nanf(""), 0, 0)) == -1);
     // The raw layout (the refinement's vectorised lookups) indexes the same cells as lookup.
     const ClosestPointGrid::Layout g = grid.layout();
-    REQUIRE(g.nx * g.ny * g.nz == grid.size());
+    REQUIRE(int64_t(g.nx) * g.ny * g.nz == grid.size());
     int same = 0;
     for (float x = -100; x <= 220; x += 9.1f)
         for (float y = -60; y <= 120; y += 8.3f)
@@ -386,7 +386,7 @@ TEST_CASE("ClosestPointGrid: near the true nearest point, outside is beyond the 
                             fz = (z - g.lo[2]) * g.inv_cell;
                 const bool in = fx >= 0 && fy >= 0 && fz >= 0 && fx < float(g.nx) &&
                                 fy < float(g.ny) && fz < float(g.nz);
-                const int k = in ? g.cells[(int64_t(fz) * g.ny + int64_t(fy)) * g.nx + int64_t(fx)] : -1;
+                const int k = in ? g.cells[g.offset(int(fx), int(fy), int(fz))] : -1;
                 same += k == grid.lookup(Eigen::Vector3f(x, y, z));
             }
     CHECK(same == 36 * 22 * 23);

@@ -142,8 +142,18 @@ struct Icp {
                        : run_point(pose, iters, grid, exact, want_fit);
     }
 
-    // One pass over the observed points at `pose`: the fit (as fit_with) and, when `A` is set,
-    // point-to-plane's normal equations over the inliers (pairs within cap_mm; a tighter,
+    // The fit (as fit_with) of the last plane_pass's distances, summed in their order.
+    double fit_of_pass() const {
+        const int64_t n = obs.rows();
+        if (n == 0) return cap_mm;
+        double sum = 0;
+        for (int64_t i = 0; i < n; ++i) sum += std::min<double>(cap_mm, d[size_t(i)]);
+        return sum / double(n);
+    }
+
+    // One pass over the observed points at `pose`: the fit (as fit_with) when `A` is null, else
+    // NaN (fit_of_pass() gives it: the steps seldom need it, and its in-order sum is a chain of
+    // additions) and point-to-plane's normal equations over the inliers (pairs within cap_mm; a tighter,
     // median-based cut keeps only the points that already lie on the surface, and a pose slid
     // along a flat face stays there), their count to *m. In the model frame x = R^T (q - t)
     // moves to dR x + dt with dR = I + [w]x; minimise sum ((x - m_i).n_i + w.(x x n_i) + dt.n_i)^2.
@@ -153,14 +163,13 @@ struct Icp {
         if (n == 0) return cap_mm;
         const Eigen::Matrix3f Rt = pose.R.transpose().cast<float>();
         const Eigen::Vector3f t = pose.t.cast<float>();
-        // 1. Each point's nearest model point, and the fit.
+        // 1. Each point's nearest model point and its distance.
         d.resize(size_t(n));
         idx.resize(size_t(n));
-        double sum = 0;
         if (grid && !exact) {
             // The grid's points for a vector of observed points at a time (gathers of the cells
             // and of their model points; one point at a time took ~25% more of the refinement's
-            // time): squared distances first, their roots and the fit's sum in order after.
+            // time): squared distances first, their roots after.
             const ClosestPointGrid::Layout g = grid->layout();
             const float q00 = Rt(0, 0), q01 = Rt(0, 1), q02 = Rt(0, 2), q10 = Rt(1, 0), q11 = Rt(1, 1),
                         q12 = Rt(1, 2), q20 = Rt(2, 0), q21 = Rt(2, 1), q22 = Rt(2, 2);
@@ -185,22 +194,18 @@ struct Icp {
                 D[i] = in ? m0 * m0 + m1 * m1 + m2 * m2 : std::numeric_limits<float>::infinity();
                 I[i] = k;
             }
-            for (int64_t i = 0; i < n; ++i) {
-                D[i] = std::sqrt(D[i]);
-                sum += std::min<double>(cap_mm, D[i]);
-            }
+            for (int64_t i = 0; i < n; ++i) D[i] = std::sqrt(D[i]);
         } else {
             for (int64_t i = 0; i < n; ++i) {
                 const Eigen::Vector3f xf = Rt * (obs.row(i).transpose() - t);
                 int j = 0;
                 const float di = grid ? nearest_hinted(*grid, xf, &hint[size_t(i)], &j)
                                       : nearest_of(tree, nullptr, true, xf, &j);
-                sum += std::min<double>(cap_mm, di);
                 d[size_t(i)] = di;
                 idx[size_t(i)] = j;
             }
         }
-        if (!A) return sum / double(n);
+        if (!A) return fit_of_pass();
         // 2. The normal equations, vectorised across the points (each lane its own partial sums;
         //    the rounding differs from a one-by-one sum in the last bits): every point's terms,
         //    an outlier's weighted by 0 (~1/3 of the refinement's time before, point by point).
@@ -247,13 +252,14 @@ struct Icp {
             for (int col = row; col < 6; ++col, ++e) (*A)(row, col) = (*A)(col, row) = u[e];
         *b << b0, b1, b2, b3, b4, b5;
         *m = int64_t(in);
-        return sum / double(n);
+        return std::numeric_limits<double>::quiet_NaN();
     }
 
     // The exact nearest model point of x (model frame), as nearest_of's exact road, found in
-    // the grid's buckets within the nearer of the grid cell's point and *hint (the point this
-    // observed point had in the previous pass: the pose moved little, so it mostly is the
-    // nearest one again, and the ball the buckets must cover shrinks to the true distance). A
+    // the grid's buckets within the distance of *hint (the point this observed point had in
+    // the previous pass: the pose moved little, so it mostly is the nearest one again, and the
+    // ball the buckets must cover shrinks to the true distance; the grid cell's point, a random
+    // read of the grid, is not needed then), or on the first pass of the grid cell's point. A
     // point with no model point within the inlier cap gets a distance beyond the cap (its
     // exact value matters to no one: the fit caps it and the step leaves it out), so no search
     // reaches farther than the cap. *hint becomes the answer.
@@ -262,13 +268,12 @@ struct Icp {
         const Points& mp = tree.points();
         float bound = std::numeric_limits<float>::infinity();
         int cand = -1;
-        if (const int k = grid.lookup(x); k >= 0) {
+        if (*hint >= 0) {  // the pose moved little: mostly the nearest point again
+            bound = (x - mp.row(*hint).transpose()).norm();
+            cand = *hint;
+        } else if (const int k = grid.lookup(x); k >= 0) {
             bound = (x - mp.row(k).transpose()).norm();
             cand = k;
-        }
-        if (*hint >= 0) {
-            const float dh = (x - mp.row(*hint).transpose()).norm();
-            if (dh < bound) bound = dh, cand = *hint;
         }
         const float beyond_cap = float(cap_mm) * (1.f + 1e-5f) + 1e-3f;
         const float b = std::min(bound, beyond_cap);
@@ -289,11 +294,12 @@ struct Icp {
         for (int it = 0;; ++it) {
             const bool last = it >= iters;
             if (last && !want_fit) return std::numeric_limits<double>::quiet_NaN();
-            const double fit = plane_pass(pose, grid, exact, last ? nullptr : &A, &b, &m);
-            if (last || m < 3) return fit;
+            if (last) return plane_pass(pose, grid, exact, nullptr, nullptr, nullptr);
+            plane_pass(pose, grid, exact, &A, &b, &m);
+            if (m < 3) return fit_of_pass();
             A.diagonal().array() += 1e-6 * double(m);  // damping: flat or round surfaces
             const Vec6 sol = A.ldlt().solve(b);
-            if (!sol.allFinite()) return fit;
+            if (!sol.allFinite()) return fit_of_pass();
             const Eigen::Vector3d w = sol.head<3>(), dtm = sol.tail<3>();
             const double ang = w.norm();
             const Eigen::Matrix3d dR = ang > 1e-12 ? Eigen::AngleAxisd(ang, w / ang).toRotationMatrix()

@@ -8,6 +8,7 @@
 #include <exception>
 #include <functional>
 #include <mutex>
+#include <vector>
 
 namespace g2l {
 
@@ -61,6 +62,31 @@ private:
 
     std::mutex mu_;
     std::deque<Entry> queue_;
+};
+
+/// The exceptions of n pieces of work run side by side (threads, jobs, tasks), one slot per
+/// piece: run(i, f) runs f and keeps what it throws in slot i (each piece writes only its own
+/// slot), rethrow_first() rethrows the lowest slot's after all the pieces ran — the error a
+/// sequential loop would have stopped at, whatever the threads' order.
+class PieceErrors {
+public:
+    explicit PieceErrors(size_t n) : failed_(n) {}
+    template <class F>
+    void run(size_t i, F&& f) {
+        try {
+            f();
+        } catch (...) {
+            failed_[i] = std::current_exception();
+        }
+    }
+    bool failed(size_t i) const { return bool(failed_[i]); }
+    void rethrow_first() const {
+        for (const auto& e : failed_)
+            if (e) std::rethrow_exception(e);
+    }
+
+private:
+    std::vector<std::exception_ptr> failed_;
 };
 
 /// The job pool of the calling thread's innermost JobPoolScope, or nullptr.

@@ -35,14 +35,8 @@ constexpr double kPi = 3.14159265358979323846;
 // the pieces ran, the lowest index's first.
 template <class Body>
 void for_each_index(int64_t n, const Body& body) {
-    std::vector<std::exception_ptr> failed(size_t(std::max<int64_t>(0, n)));
-    auto piece = [&](int64_t i) {
-        try {
-            body(i);
-        } catch (...) {
-            failed[size_t(i)] = std::current_exception();
-        }
-    };
+    PieceErrors errors(size_t(std::max<int64_t>(0, n)));
+    auto piece = [&](int64_t i) { errors.run(size_t(i), [&] { body(i); }); };
     if (JobPool* pool = current_job_pool()) {
         JobPool::Group group;
         for (int64_t i = 0; i < n; ++i) pool->submit(group, [&piece, i] { piece(i); });
@@ -61,8 +55,7 @@ void for_each_index(int64_t n, const Body& body) {
         for (int64_t i = 0; i < n; ++i) piece(i);
 #endif
     }
-    for (const auto& e : failed)
-        if (e) std::rethrow_exception(e);
+    errors.rethrow_first();
 }
 
 // The turns tried besides the identity: the 23 other proper axis permutations of the model box
@@ -835,27 +828,20 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
     const std::vector<std::vector<int64_t>> clusters = cluster_sets(obs_all, info, opt);
     std::vector<Points> subsets(clusters.size());
     std::vector<RefineResult> found(clusters.size() + 1);
-    std::vector<std::exception_ptr> failed(found.size());
     for_each_index(int64_t(found.size()), [&](int64_t k) {
-        try {
-            if (k == 0) {
-                found[0] = search(obs_all);
-                return;
-            }
-            const auto& rows = clusters[size_t(k - 1)];
-            if (rows.empty()) return;
-            Points& sub = subsets[size_t(k - 1)];
-            sub.resize(int64_t(rows.size()), 3);
-            for (size_t i = 0; i < rows.size(); ++i) sub.row(int64_t(i)) = obs_all.row(rows[i]);
-            found[size_t(k)] = search(sub);
-            found[size_t(k)].cluster = int(k - 1);
-            found[size_t(k)].observed = int(rows.size());
-        } catch (...) {
-            failed[size_t(k)] = std::current_exception();
+        if (k == 0) {
+            found[0] = search(obs_all);
+            return;
         }
+        const auto& rows = clusters[size_t(k - 1)];
+        if (rows.empty()) return;
+        Points& sub = subsets[size_t(k - 1)];
+        sub.resize(int64_t(rows.size()), 3);
+        for (size_t i = 0; i < rows.size(); ++i) sub.row(int64_t(i)) = obs_all.row(rows[i]);
+        found[size_t(k)] = search(sub);
+        found[size_t(k)].cluster = int(k - 1);
+        found[size_t(k)].observed = int(rows.size());
     });
-    for (const auto& e : failed)
-        if (e) std::rethrow_exception(e);
     RefineResult best = found[0];
     for (size_t k = 1; k < found.size(); ++k)
         if (!clusters[k - 1].empty() && found[k].fit_mm < best.fit_mm) best = found[k];

@@ -114,17 +114,11 @@ void FramePipeline::crop(const float* depth, const geom::Intrinsics& K,
     // The boxes are cropped side by side (OpenMP over the boxes; each writes only its own
     // outcome), errors rethrown after, the first box's first.
     const int64_t n = int64_t(requests.size());
-    std::vector<std::exception_ptr> failed(requests.size());
+    PieceErrors errors(requests.size());
 #pragma omp parallel for schedule(dynamic, 1)
-    for (int64_t i = 0; i < n; ++i) {
-        try {
-            crop_one(depth, K, requests[size_t(i)], &(*out)[size_t(i)]);
-        } catch (...) {
-            failed[size_t(i)] = std::current_exception();
-        }
-    }
-    for (const auto& e : failed)
-        if (e) std::rethrow_exception(e);
+    for (int64_t i = 0; i < n; ++i)
+        errors.run(size_t(i), [&] { crop_one(depth, K, requests[size_t(i)], &(*out)[size_t(i)]); });
+    errors.rethrow_first();
 }
 
 void FramePipeline::crop_one(const float* depth, const geom::Intrinsics& K, const PoseRequest& r,
@@ -203,6 +197,10 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
         }
         p.pose = e.pose;
     };
+    // The verification against the depth (when asked, and the object has a mesh).
+    auto verify_into = [&](PoseOutcome& p) {
+        if (verify_opt && meshes_.count(p.obj_id)) p.check = verify(depth, K, p, *verify_opt);
+    };
     // Depth refinement against the mesh (geometry/refine.h), then the verification.
     auto refine = [&](size_t i) {
         PoseOutcome& p = outs[i];
@@ -223,7 +221,7 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
             p.refine_cluster = rr.cluster;
             p.refined = true;
         }
-        if (verify_opt && me != meshes_.end()) p.check = verify(depth, K, p, *verify_opt);
+        verify_into(p);
     };
     const bool refining = opt_.refine != Refinement::none;
     // The first box's networks on every thread (nothing else is ready to run yet); then each
@@ -245,21 +243,15 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
             if (outs[next].status == PoseStatus::ok) networks(next);
         if (verify_opt)
             for (PoseOutcome& p : outs)
-                if (p.status == PoseStatus::ok && meshes_.count(p.obj_id)) {
+                if (p.status == PoseStatus::ok) {
                     const auto tv = Clock::now();
-                    p.check = verify(depth, K, p, *verify_opt);
+                    verify_into(p);
                     p.ms_refine += ms_since(tv);  // verification is part of the depth stage
                 }
         return;
     }
-    std::vector<std::exception_ptr> failed(outs.size());
-    auto guarded = [&](size_t i, auto&& step) {
-        try {
-            step(i);
-        } catch (...) {
-            failed[i] = std::current_exception();
-        }
-    };
+    PieceErrors errors(outs.size());
+    auto guarded = [&](size_t i, auto&& step) { errors.run(i, [&] { step(i); }); };
     // The stage's wall time less the networks run inside it, shared among the refined boxes.
     const auto t0 = Clock::now();
     double ms_networks = 0;
@@ -277,7 +269,7 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
                     guarded(i, networks);
                     ms_networks += ms_since(tn);
                 }
-                if (failed[i] || outs[i].status != PoseStatus::ok) continue;
+                if (errors.failed(i) || outs[i].status != PoseStatus::ok) continue;
                 refined.push_back(i);
                 pool.submit(boxes, [&guarded, &refine, i] { guarded(i, refine); });
             }
@@ -285,8 +277,7 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
         }
         pool.wait(boxes);
     }
-    for (const auto& e : failed)
-        if (e) std::rethrow_exception(e);
+    errors.rethrow_first();
     const double share = std::max(0.0, ms_since(t0) - ms_networks) / double(std::max<size_t>(1, refined.size()));
     for (const size_t i : refined) outs[i].ms_refine = share;
 }

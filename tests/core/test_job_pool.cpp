@@ -116,3 +116,33 @@ TEST_CASE("JobPool: the scope sets the thread's pool and restores the one before
     }
     CHECK(g2l::current_job_pool() == nullptr);
 }
+
+TEST_CASE("PieceErrors: every piece runs, the lowest failed piece's error is rethrown") {
+    // Pieces run on two threads in reverse order: pieces 7 and 2 fail; 2's error comes back.
+    g2l::PieceErrors errors(10);
+    std::atomic<int> ran{0};
+    std::thread t([&] {
+        for (int i = 9; i >= 5; --i)
+            errors.run(size_t(i), [&, i] {
+                ++ran;
+                if (i == 7) throw std::runtime_error("piece 7 failed");
+            });
+    });
+    for (int i = 4; i >= 0; --i)
+        errors.run(size_t(i), [&, i] {
+            ++ran;
+            if (i == 2) throw std::invalid_argument("piece 2 failed");
+        });
+    t.join();
+    CHECK(ran.load() == 10);
+    CHECK(errors.failed(2));
+    CHECK(errors.failed(7));
+    CHECK_FALSE(errors.failed(0));
+    CHECK_THROWS_AS(errors.rethrow_first(), std::invalid_argument);
+    CHECK_THROWS_WITH(errors.rethrow_first(), "piece 2 failed");
+    // None failed: nothing is thrown.
+    g2l::PieceErrors fine(3);
+    for (size_t i = 0; i < 3; ++i) fine.run(i, [] {});
+    CHECK_NOTHROW(fine.rethrow_first());
+    CHECK_FALSE(fine.failed(1));
+}

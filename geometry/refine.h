@@ -118,8 +118,8 @@ private:
     int64_t tree_points_ = 0;
     std::vector<int32_t> cells_;  // x fastest (Layout::offset)
     // The model points sorted into buckets (x fastest): bucket b's points are rows
-    // [bucket_start_[b], bucket_start_[b + 1]) of bucket_pts_ (x, y, z), their tree rows in
-    // bucket_row_.
+    // [bucket_start_[b], bucket_start_[b + 1]) of bucket_pts_ (every point's x, then every y,
+    // then every z: a row of buckets loads contiguously), their tree rows in bucket_row_.
     Eigen::Vector3f bucket_lo_ = Eigen::Vector3f::Zero();
     float inv_bucket_ = 0;
     double bucket_ = 0;

@@ -17,6 +17,8 @@ namespace g2l::data {
 namespace {
 
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
+// The instance image's value on a block (distractors: -1, targets: k + 1, background: 0).
+constexpr int32_t kBlockInstance = -2;
 
 uint64_t mix64(uint64_t z) {
     z += 0x9E3779B97F4A7C15ull;
@@ -512,10 +514,12 @@ void SceneGenerator::render_frame(int64_t index, RenderedFrame& out, int threads
                        noise_scratch_, threads);
     out.mask.resize(size_t(W) * H);
     out.distractor_mask.resize(size_t(W) * H);
+    out.block_mask.resize(size_t(W) * H);
     for (size_t i = 0; i < out.mask.size(); ++i) {
         const int32_t id = full_.instance[i];
         out.mask[i] = uint16_t(std::max(id, 0));
         out.distractor_mask[i] = id < 0 ? 255 : 0;
+        out.block_mask[i] = id == kBlockInstance ? 255 : 0;
     }
     instance_truth(out, chosen, n_targets, opt);
 }
@@ -630,7 +634,7 @@ std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_resting(
         obj.mesh = &blocks_[b];
         obj.pose.R = Rcw * Eigen::AngleAxisd(blocks[b].yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
         obj.pose.t = Rcw * (Eigen::Vector3d(blocks[b].xy.x(), blocks[b].xy.y(), 0.5 * blocks[b].size.z()) - C);
-        obj.instance_id = -1;
+        obj.instance_id = kBlockInstance;
         const uint8_t grey = uint8_t(rng.randint(60, 220));
         obj.default_color = {grey, uint8_t(std::min(255, grey + int(rng.randint(0, 30)))), grey};
         objects_.push_back(obj);

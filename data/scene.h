@@ -150,7 +150,8 @@ struct RenderedFrame {
     std::vector<float> depth;       ///< mm, sensor noise applied (if enabled); 0 = no depth
     std::vector<uint8_t> rgb;       ///< H x W x 3
     std::vector<uint16_t> mask;     ///< k + 1 where instance k is visible, 0 elsewhere
-    std::vector<uint8_t> distractor_mask;  ///< 255 where a distractor is visible, 0 elsewhere
+    std::vector<uint8_t> distractor_mask;  ///< 255 where a distractor or a block is visible
+    std::vector<uint8_t> block_mask;  ///< 255 where a block (SceneConfig blocks_*) is visible
     std::vector<std::vector<uint8_t>> full_masks;  ///< per instance: 255 on the full silhouette
     std::vector<RenderedInstance> instances;
 };

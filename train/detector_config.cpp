@@ -78,6 +78,7 @@ void visit_detector(IO& io, DetectorTrainConfig& c, const std::string& source) {
         l.num("heat", c.w_heat);
         l.num("size", c.w_size);
         l.num("offset", c.w_offset);
+        l.num("block_negatives", c.w_block_negatives);
     });
     io.object("optim", [&](IO& o) { o.num("lr", c.lr); });
     io.object("train", [&](IO& t) {
@@ -144,6 +145,9 @@ void validate(const DetectorTrainConfig& c, const std::string& where) {
     for (auto [k, v] : {std::pair<const char*, double>{"loss.heat", c.w_heat},
                         {"loss.size", c.w_size}, {"loss.offset", c.w_offset}})
         G2L_CHECK(std::isfinite(v) && v >= 0, where, ": '", k, "' must be >= 0, got ", v);
+    G2L_CHECK(std::isfinite(c.w_block_negatives) && c.w_block_negatives >= 0 &&
+                  c.w_block_negatives <= 1,
+              where, ": 'loss.block_negatives' must be in [0, 1], got ", c.w_block_negatives);
     G2L_CHECK(std::isfinite(c.lr) && c.lr > 0, where, ": 'optim.lr' must be > 0, got ", c.lr);
     G2L_CHECK(c.steps > 0, where, ": 'train.steps' must be > 0, got ", c.steps);
     G2L_CHECK(c.batch > 0 && c.batch <= 1024, where, ": 'train.batch' must be in [1, 1024], got ",

@@ -50,6 +50,20 @@ DetTargets make_detector_targets(const std::vector<DetBox>& boxes, int K, int w,
     return t;
 }
 
+std::vector<float> block_cell_weights(const std::vector<uint8_t>& blocks, int W, int H,
+                                      int stride, float weight) {
+    G2L_CHECK(W > 0 && H > 0 && stride > 0 && blocks.size() == size_t(W) * size_t(H),
+              "block_cell_weights: a mask of ", blocks.size(), " pixels for ", W, " x ", H);
+    G2L_CHECK(std::isfinite(weight) && weight >= 0, "block_cell_weights: weight ", weight);
+    const int w = W / stride, h = H / stride;
+    std::vector<float> nw(size_t(w) * size_t(h), 1.f);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+            if (blocks[size_t(y * stride + stride / 2) * size_t(W) + size_t(x * stride + stride / 2)])
+                nw[size_t(y) * size_t(w) + size_t(x)] = weight;
+    return nw;
+}
+
 double detector_centres(const std::vector<DetTargets>& targets) {
     double n = 0;
     for (const DetTargets& t : targets)
@@ -74,7 +88,8 @@ Tensor detector_loss(const nn::DetOut& out, const std::vector<DetTargets>& targe
     for (int64_t b = 0; b < B; ++b) {
         const DetTargets& t = targets[size_t(b)];
         G2L_CHECK(t.heat.size() == size_t(K) * plane && t.mask.size() == plane &&
-                      t.size.size() == 2 * plane && t.offset.size() == 2 * plane,
+                      t.size.size() == 2 * plane && t.offset.size() == 2 * plane &&
+                      (t.neg_weight.empty() || t.neg_weight.size() == plane),
                   "detector_loss: targets of sample ", b, " do not match the ", K, " x ", H,
                   " x ", W, " output");
         for (size_t i = 0; i < size_t(K) * plane; ++i) {
@@ -84,7 +99,8 @@ Tensor detector_loss(const nn::DetOut& out, const std::vector<DetTargets>& targe
             const bool p = g >= 1.f;
             pos.data<float>()[o] = p ? 1.f : 0.f;
             const float q = 1.f - g;
-            negw.data<float>()[o] = p ? 0.f : q * q * q * q;
+            const float nw = t.neg_weight.empty() ? 1.f : t.neg_weight[i % plane];
+            negw.data<float>()[o] = p ? 0.f : nw * q * q * q * q;
             npos += p;
         }
         std::copy(t.size.begin(), t.size.end(), st.data<float>() + size_t(b) * 2 * plane);

@@ -80,6 +80,10 @@ struct DetectorTrainConfig {
     std::string init;               ///< a detector export to start from (fine-tuning); "" = fresh
     // loss
     double w_heat = 1.0, w_size = 0.1, w_offset = 1.0;
+    /// The weight of the heat loss's negative part on cells whose centre pixel shows an
+    /// unannotated block (data.scene blocks_*): 1 = background like the table; 0 = not taught
+    /// either way (a block looks like some objects: a wood block is a plain cuboid).
+    double w_block_negatives = 1.0;
     // optimisation
     double lr = 2e-3;
     int64_t steps = 4000;
@@ -131,12 +135,17 @@ struct DetBox {
 /// heat [K, h, w] (1 at each centre cell, a Gaussian of sigma 0.1 sqrt(box cells) (>= 0.7)
 /// around it, max over objects), size [2, h, w] (log(box w / stride), log(box h / stride)),
 /// offset [2, h, w] (centre / stride - cell), mask [h, w] (1 at the centre cells). Boxes whose
-/// centre falls outside the grid or whose size is not positive are skipped.
+/// centre falls outside the grid or whose size is not positive are skipped. neg_weight [h, w]
+/// (empty: 1 everywhere) scales the heat loss's negative part per cell, for every class.
 struct DetTargets {
-    std::vector<float> heat, size, offset, mask;
+    std::vector<float> heat, size, offset, mask, neg_weight;
 };
 DetTargets make_detector_targets(const std::vector<DetBox>& boxes, int K, int w, int h,
                                  int stride = nn::Detector::kStride);
+/// DetTargets::neg_weight of an image whose blocks show where `blocks` (W x H, 255) is: `weight`
+/// on the (W / stride) x (H / stride) cells whose centre pixel shows a block, 1 elsewhere.
+std::vector<float> block_cell_weights(const std::vector<uint8_t>& blocks, int W, int H,
+                                      int stride, float weight);
 
 /// The loss of a batch: heat logits against stacked targets (focal loss, normalised by the
 /// number of centres), L1 on size and offset at the centre cells. Returns the total and writes

@@ -153,6 +153,8 @@ TEST_CASE("scene distractors: their pixels are in distractor_mask, never in the 
             REQUIRE(f.distractor_mask.size() == f.mask.size());
             REQUIRE(f.instances.size() == 1);
             REQUIRE(f.instances[0].obj_id == 1);
+            // No block in this scene: distractors are not blocks.
+            REQUIRE(std::count(f.block_mask.begin(), f.block_mask.end(), 255) == 0);
             for (size_t i = 0; i < f.mask.size(); ++i) {
                 REQUIRE(f.mask[i] <= 1);  // only the one target's id
                 if (f.distractor_mask[i]) {
@@ -531,6 +533,12 @@ TEST_CASE("resting mode: tallest poses, blocks to stand on, leaning objects", "[
             int64_t block_px = 0;
             for (uint8_t d : f.distractor_mask) block_px += d != 0;
             CHECK(block_px > 0);  // the blocks are rendered, as unannotated distractors
+            // ... and marked in block_mask (no distractor here: the same pixels), never in
+            // the instance mask.
+            REQUIRE(f.block_mask.size() == f.mask.size());
+            CHECK(f.block_mask == f.distractor_mask);
+            for (size_t i = 0; i < f.mask.size(); ++i)
+                if (f.block_mask[i]) REQUIRE(f.mask[i] == 0);
             fit_table(f, &up, &mean);
             for (const auto& gt : f.instances) {
                 INFO("frame " << idx << " object " << gt.obj_id);

@@ -120,6 +120,34 @@ TEST_CASE("detector: the focal loss at known values", "[detector]") {
     REQUIRE(lo == Approx(0.25).epsilon(1e-6));
     REQUIRE(L.item<double>() == Approx(expect + 0.1 + 0.25).epsilon(1e-5));
     REQUIRE_THROWS_WITH(train::detector_loss(o, {t, t}, 1, 1, 1), Contains("2 targets for a batch of 1"));
+
+    // Per-cell weights of the negatives (cells showing a block): weight 0 on 3 empty cells and
+    // 0.5 on a fourth removes 3.5 of the 15 negative terms; the centre's term is untouched.
+    t.neg_weight.assign(16, 1.f);
+    t.neg_weight[0] = t.neg_weight[1] = t.neg_weight[2] = 0.f;
+    t.neg_weight[3] = 0.5f;
+    t.neg_weight[5] = 0.f;  // the centre: a positive, never weighted
+    train::detector_loss(o, {t}, 1, 0.1, 1, &lh);
+    REQUIRE(lh == Approx(-(0.25 * std::log(0.5)) - 11.5 * (0.25 * std::log(0.5))).epsilon(1e-5));
+    t.neg_weight.assign(15, 1.f);
+    REQUIRE_THROWS_WITH(train::detector_loss(o, {t}, 1, 1, 1), Contains("targets of sample 0 do not match"));
+}
+
+TEST_CASE("detector: block_cell_weights weights the cells whose centre pixel shows a block", "[detector]") {
+    // 16 x 8 pixels, stride 4: 4 x 2 cells, centre pixels (2 + 4x, 2 + 4y).
+    const int W = 16, H = 8;
+    std::vector<uint8_t> blocks(size_t(W * H), 0);
+    auto at = [&](int x, int y) -> uint8_t& { return blocks[size_t(y * W + x)]; };
+    at(6, 2) = 255;   // cell (1, 0)'s centre
+    at(3, 6) = 255;   // in cell (0, 1), off its centre (2, 6): not weighted
+    at(14, 6) = 255;  // cell (3, 1)'s centre
+    const std::vector<float> nw = train::block_cell_weights(blocks, W, H, 4, 0.25f);
+    REQUIRE(nw == std::vector<float>{1, 0.25f, 1, 1, 1, 1, 1, 0.25f});
+    REQUIRE(train::block_cell_weights(std::vector<uint8_t>(size_t(W * H), 0), W, H, 4, 0.f) ==
+            std::vector<float>(8, 1.f));
+    REQUIRE_THROWS_WITH(train::block_cell_weights(blocks, W, H + 1, 4, 0.f),
+                        Contains("a mask of 128 pixels for 16 x 9"));
+    REQUIRE_THROWS_WITH(train::block_cell_weights(blocks, W, H, 4, -1.f), Contains("weight -1"));
 }
 
 TEST_CASE("detector: a tiny detector learns to find coloured squares", "[detector][learn][slow]") {
@@ -235,6 +263,12 @@ TEST_CASE("detector: bad configs, shapes and exports are named errors", "[detect
                         Contains("'data.distractor_ids' is set but 'data.distractors_root' is empty"));
     REQUIRE_THROWS_WITH(parse(R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1], "distractors_root": "/d", "distractor_colors": 0}})"),
                         Contains("'data.distractor_colors' must be in [1, 16], got 0"));
+    REQUIRE(parse(R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1]}})")
+                .w_block_negatives == 1.0);  // blocks are background unless asked
+    REQUIRE(parse(R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1]}, "loss": {"block_negatives": 0}})")
+                .w_block_negatives == 0.0);
+    REQUIRE_THROWS_WITH(parse(R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1]}, "loss": {"block_negatives": 1.5}})"),
+                        Contains("'loss.block_negatives' must be in [0, 1], got 1.5"));
     // data.mix: probabilities in (0, 1] summing to at most 1, the main scene's camera, both
     // keys given.
     const std::string mix_head = R"({"task": "detector", "data": {"models_root": "/m", "object_ids": [1], "mix": )";

@@ -83,9 +83,9 @@ struct DetSample {
     std::vector<uint8_t> rgb;  // H x W x 3 at the detector's input resolution
     std::vector<float> depth;  // H x W (mm), for a depth or rgbd detector
     std::vector<DetBox> boxes;
-    // H x W: 255 where a block shows in the render (empty: none, or loss.block_negatives 1);
-    // an occluder pasted over a block leaves those pixels marked.
-    std::vector<uint8_t> blocks;
+    // DetTargets::neg_weight of the image's blocks (empty: loss.block_negatives 1); an occluder
+    // pasted over a block leaves its cells weighted as the block's.
+    std::vector<float> neg_weight;
 };
 
 // A scene of the config (`full`: data.scene or one of data.mix) at the detector's input
@@ -348,9 +348,7 @@ public:
             targets.push_back(make_detector_targets(d.boxes, int(cls_.size()),
                                                     W_ / nn::Detector::kStride,
                                                     H_ / nn::Detector::kStride));
-            if (!d.blocks.empty())
-                targets.back().neg_weight = block_cell_weights(
-                    d.blocks, W_, H_, nn::Detector::kStride, float(cfg_.w_block_negatives));
+            targets.back().neg_weight = d.neg_weight;
         }
         net_.train();
         adam_.zero_grad();
@@ -440,10 +438,9 @@ private:
             if (cfg_.occluder_prob > 0) paste_occluders(d, vis, fr, W_, cfg_.occluder_prob, rng);
             augment(d.rgb, W_, H_, cfg_, rng);
             d.boxes = visible_boxes(fr, vis, W_, H_, cls_, cfg_.min_visib_fract);
-            d.blocks.clear();
-            if (cfg_.w_block_negatives != 1.0 &&
-                std::find(fr.block_mask.begin(), fr.block_mask.end(), 255) != fr.block_mask.end())
-                d.blocks = fr.block_mask;
+            if (cfg_.w_block_negatives != 1.0)
+                d.neg_weight = block_cell_weights(fr.block_mask, W_, H_, nn::Detector::kStride,
+                                                  float(cfg_.w_block_negatives));
         }
         return batch;
     }

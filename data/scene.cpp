@@ -240,6 +240,9 @@ void validate(const SceneConfig& c, const std::string& where) {
                   c.block_size_mm[0] > 0 && c.block_size_mm[0] <= c.block_size_mm[1],
               where, ": block_size_mm must be [min, max] with 0 < min <= max (mm), got [",
               c.block_size_mm[0], ", ", c.block_size_mm[1], "]");
+    G2L_CHECK(std::isfinite(c.block_lookalike_tol) && c.block_lookalike_tol >= 0 &&
+                  c.block_lookalike_tol <= 1,
+              where, ": block_lookalike_tol must be in [0, 1], got ", c.block_lookalike_tol);
     G2L_CHECK(std::isfinite(c.lean_max_deg) && c.lean_max_deg >= 0 && c.lean_max_deg <= 90, where,
               ": lean_max_deg must be in [0, 90] degrees, got ", c.lean_max_deg);
     G2L_CHECK(c.camera_roll_max >= 0 && c.camera_roll_max <= 180, where,
@@ -272,7 +275,9 @@ SceneGenerator::SceneGenerator(const SceneConfig& cfg, std::vector<SceneModel> m
                                  .rowwise()
                                  .squaredNorm()
                                  .maxCoeff()));
-        ModelGeom g{m.obj_id, m.mesh, c, std::max(r, 1e-3), c, {}, -1, {}};
+        ModelGeom g{m.obj_id, m.mesh, c, std::max(r, 1e-3), c, {}, -1, {}, {}};
+        g.extent_sorted = (hi - lo).cast<double>();
+        std::sort(g.extent_sorted.data(), g.extent_sorted.data() + 3);
         if (cfg_.pose_mode == "resting") {
             const auto& sp = cached_stable_poses(*m.mesh);
             g.com = sp.first;
@@ -309,6 +314,20 @@ SceneGenerator::SceneGenerator(const SceneConfig& cfg, std::vector<SceneModel> m
     plane_ = make_quad(1.0, 8);
     plane_unit_ = plane_.vertices;
     plane_.path = "<support plane>";
+}
+
+bool SceneGenerator::block_is_lookalike(const Eigen::Vector3d& size) const {
+    if (cfg_.block_lookalike_tol <= 0) return true;
+    Eigen::Vector3d s = size;
+    std::sort(s.data(), s.data() + 3);
+    for (const int id : targets_) {
+        const Eigen::Vector3d& e = model(id).extent_sorted;
+        bool alike = true;
+        for (int a = 0; a < 3; ++a)
+            alike = alike && std::abs(s[a] - e[a]) <= cfg_.block_lookalike_tol * e[a];
+        if (alike) return true;
+    }
+    return false;
 }
 
 const SceneGenerator::ModelGeom& SceneGenerator::model(int obj_id) const {
@@ -634,7 +653,7 @@ std::vector<std::pair<Eigen::Vector3d, double>> SceneGenerator::place_resting(
         obj.mesh = &blocks_[b];
         obj.pose.R = Rcw * Eigen::AngleAxisd(blocks[b].yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
         obj.pose.t = Rcw * (Eigen::Vector3d(blocks[b].xy.x(), blocks[b].xy.y(), 0.5 * blocks[b].size.z()) - C);
-        obj.instance_id = kBlockInstance;
+        obj.instance_id = block_is_lookalike(blocks[b].size) ? kBlockInstance : -1;
         const uint8_t grey = uint8_t(rng.randint(60, 220));
         obj.default_color = {grey, uint8_t(std::min(255, grey + int(rng.randint(0, 30)))), grey};
         objects_.push_back(obj);

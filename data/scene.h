@@ -86,6 +86,12 @@ struct SceneConfig {
     /// YCB-Video, boxes, books. They are distractors (instance id -1).
     int blocks_min = 0, blocks_max = 0;
     std::array<double, 2> block_size_mm{{40, 200}};
+    /// Which blocks RenderedFrame::block_mask marks: 0 (default) every block; > 0 only the
+    /// lookalikes — blocks whose sorted edge lengths each lie within this share of the sorted
+    /// bounding-box extents of some target (a depth image cannot tell a 10 x 10 x 21 cm block
+    /// from the YCB-Video wood block). The other blocks are plain distractors (instance id -1,
+    /// in distractor_mask only). The frames are the same either way. In [0, 1].
+    double block_lookalike_tol = 0;
     /// Per object, the probability that it rests on top of a block (when the frame has one)
     /// instead of on the table.
     double on_block_prob = 0;
@@ -180,7 +186,10 @@ private:
         std::vector<geom::StablePose> stable;  ///< stable poses (resting mode)
         int upright = -1;  ///< the stable pose nearest "model -z down" (within 30 deg), or -1
         geom::StablePose tall;  ///< the stable pose with the highest centre of mass (tall_prob > 0)
+        Eigen::Vector3d extent_sorted = Eigen::Vector3d::Zero();  ///< bounding box, ascending
     };
+    /// Whether a block of edge lengths `size` looks like a target (block_lookalike_tol).
+    bool block_is_lookalike(const Eigen::Vector3d& size) const;
     /// Places objects_ (and the table) for a "resting" frame; returns each object's centre
     /// and radius in camera coordinates.
     std::vector<std::pair<Eigen::Vector3d, double>> place_resting(

@@ -91,6 +91,7 @@ void visit_scene(IO& io, SceneConfig& c) {
     io.integer("blocks_min", c.blocks_min);
     io.integer("blocks_max", c.blocks_max);
     io.template nums<2>("block_size_mm", c.block_size_mm);
+    io.num("block_lookalike_tol", c.block_lookalike_tol);
     io.num("on_block_prob", c.on_block_prob);
     io.num("on_object_prob", c.on_object_prob);
     io.num("lean_prob", c.lean_prob);

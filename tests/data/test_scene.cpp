@@ -548,6 +548,29 @@ TEST_CASE("resting mode: tallest poses, blocks to stand on, leaning objects", "[
             }
         }
     }
+    SECTION("block_lookalike_tol: block_mask marks only the blocks shaped like a target") {
+        // ~60 mm cubes: within 20 % of the 70 mm sphere's box (|60 - 70| <= 14), not within
+        // 10 % (> 7) of it nor of the 40 x 60 x 80 or 30 x 30 x 90 boxes.
+        cfg.blocks_min = cfg.blocks_max = 2;
+        cfg.block_size_mm = {59.5, 60.5};
+        RenderedFrame all, none, alike;
+        SceneGenerator(cfg, m.list()).render_frame(3, all);
+        cfg.block_lookalike_tol = 0.1;
+        SceneGenerator(cfg, m.list()).render_frame(3, none);
+        cfg.block_lookalike_tol = 0.2;
+        SceneGenerator(cfg, m.list()).render_frame(3, alike);
+        int64_t block_px = 0;
+        for (uint8_t d : all.block_mask) block_px += d != 0;
+        REQUIRE(block_px > 0);
+        // The same frame each time; only the marking differs.
+        CHECK(none.depth == all.depth);
+        CHECK(alike.depth == all.depth);
+        CHECK(none.distractor_mask == all.distractor_mask);
+        CHECK(alike.mask == all.mask);
+        CHECK(std::count(none.block_mask.begin(), none.block_mask.end(), 255) == 0);
+        CHECK(alike.block_mask == all.block_mask);
+        CHECK(alike.block_mask == alike.distractor_mask);
+    }
     SECTION("on_object_prob 1: every object after the first rests on one placed before it") {
         cfg.on_object_prob = 1;
         cfg.targets_min = cfg.targets_max = 2;
@@ -611,6 +634,11 @@ TEST_CASE("resting mode: tallest poses, blocks to stand on, leaning objects", "[
         CHECK(b.block_size_mm[1] == 150);
         cfg.on_object_prob = 0.15;
         CHECK(parse_scene_config(scene_config_to_json(cfg), "round trip").on_object_prob == 0.15);
+        cfg.block_lookalike_tol = 0.25;
+        CHECK(parse_scene_config(scene_config_to_json(cfg), "round trip").block_lookalike_tol ==
+              0.25);
+        CHECK_THROWS_WITH(parse_scene_config(R"({"block_lookalike_tol": 1.5})", "s.json"),
+                          Contains("block_lookalike_tol must be in [0, 1], got 1.5"));
         CHECK_THROWS_WITH(parse_scene_config(R"({"on_object_prob": 2})", "s.json"),
                           Contains("on_object_prob must be in [0, 1], got 2"));
     }

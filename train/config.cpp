@@ -115,6 +115,7 @@ void visit_config(IO& io, TrainConfig& c) {
         m.num("out_scale_mm", c.model.out_scale_mm);
         m.choice("rot_unit", c.model.rot_unit, kRotUnits);
         m.boolean("class_heads", c.model.class_heads);
+        m.text("init", c.model.init);
     });
     io.object("loss", [&](IO& l) {
         l.num("seg", c.loss.seg);
@@ -270,6 +271,13 @@ void finalize(TrainConfig& c, const std::string& source, const std::string& base
     };
     resolve(c.data.train, "train");
     resolve(c.data.val, "val");
+    if (!c.model.init.empty()) {
+        try {
+            c.model.init = resolve_config_path(c.model.init, base_dir);
+        } catch (const Error& e) {
+            G2L_CHECK(false, source, ": 'model.init': ", e.what());
+        }
+    }
 }
 
 void check_sources(const TrainConfig& c, const std::vector<SourceConfig>& list,

@@ -78,6 +78,10 @@ struct ModelConfig {
     double out_scale_mm = 1.0;       ///< unit of the mm-valued outputs (nn::G2LConfig)
     std::string rot_unit = "kp_rms"; ///< rotation branch unit: "kp_rms" or "mm" (official)
     bool class_heads = false;        ///< one output block per class in blocks A/B/C
+    /// Fine-tuning: start from this model file's weights (an export or a checkpoint of the same
+    /// network and objects), with a fresh optimiser and schedule. "" = random initialisation.
+    /// Relative paths are relative to the config file.
+    std::string init;
 };
 
 /// Loss weights (spec §6: 10 L_seg + L_T/10 + 10 L_vec + L_kp/100 + L_res/100).

@@ -20,6 +20,7 @@
 #include "data/bop.h"
 #include "geometry/keypoints.h"
 #include "geometry/symmetry.h"
+#include "nn/models/g2l_io.h"
 #include "nn/models/g2l_net.h"
 #include "nn/ops/elementwise.h"
 #include "nn/optim.h"
@@ -295,6 +296,22 @@ public:
         s.epoch_loss = st.epoch_loss, s.best_val = st.best_val, s.seconds = st.seconds;
         return s;
     }
+    /// Fine-tuning (model.init): the weights of a model file of the same network and objects,
+    /// with this run's fresh optimiser and schedule.
+    void init_from(const std::string& path) {
+        const nn::LoadedModel from = nn::load_model(path);
+        const nn::G2LConfig& a = from.net->config();
+        const auto arch = [](const nn::G2LConfig& c) {
+            return cat("num_classes ", c.num_classes, ", keypoints ", c.num_keypoints, ", evf ",
+                       c.evf, ", rre ", c.rre, ", width ", c.width, ", out_scale_mm ",
+                       c.out_scale_mm, ", rot_unit ", c.rot_unit, ", class_heads ", c.class_heads);
+        };
+        G2L_CHECK(arch(a) == arch(mc_), "model.init '", path, "': its network (", arch(a),
+                  ") is not the config's model (", arch(mc_), ")");
+        G2L_CHECK(from.class_of == rd_.class_of, "model.init '", path,
+                  "': its objects differ from data.object_ids (the same ids in the same order)");
+        net_.load_state_dict(from.net->state_dict(), true);
+    }
     int64_t parameters() const {
         int64_t n = 0;
         for (const nn::ParamGroup& g : adam_.groups())
@@ -523,6 +540,9 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                   "on, resume with --set train.epochs=N (N > ", cfg.train.epochs, ")");
         run.trim_log("steps.jsonl", "step", start.step);  // a killed run logged past it
         run.trim_log("epochs.jsonl", "epoch", start.epoch - 1);
+    } else if (!cfg.model.init.empty()) {
+        task.init_from(cfg.model.init);
+        if (progress) std::printf("model.init: the weights of %s\n", cfg.model.init.c_str());
     }
     run.begin(config_to_json(cfg) + "\n");
     if (progress && dist::size() > 1)

@@ -11,6 +11,7 @@
 
 #include "core/checkpoint.h"
 #include "testing.h"
+#include "nn/models/g2l_io.h"
 #include "train/config.h"
 #include "eval/evaluate.h"
 #include "train/model_io.h"
@@ -140,6 +141,62 @@ TEST_CASE("g2l_train: stopping and resuming equals an uninterrupted run, bitwise
     REQUIRE(sb.steps == 8);
     require_same_checkpoint(a + "/last.g2l", b + "/last.g2l");
     REQUIRE(logged(a, "loss") == logged(b, "loss"));
+}
+
+TEST_CASE("g2l_train: model.init starts from another run's weights with a fresh optimiser",
+          "[train][trainer]") {
+    const std::string a = testing::temp_dir("init_a"), b = testing::temp_dir("init_b"),
+                      c = testing::temp_dir("init_c");
+    train::TrainOptions opt;
+    opt.progress = false;
+    REQUIRE(train::run_training(train::parse_config_text(tiny_config(a, 1, 16), "a.json"), opt)
+                .steps == 4);
+    // B starts from A's weights, C from the random initialisation; both are stopped before
+    // their first step, so their checkpoints hold the weights they started from.
+    auto jb = nlohmann::json::parse(tiny_config(b, 1, 16));
+    jb["model"]["init"] = a + "/last.g2l";
+    const auto cb = train::parse_config_text(jb.dump(), "b.json");
+    REQUIRE(cb.model.init == a + "/last.g2l");
+    std::atomic<bool> stop{true};
+    train::TrainOptions sig = opt;
+    sig.stop_flag = &stop;
+    REQUIRE(train::run_training(cb, sig).steps == 0);
+    REQUIRE(train::run_training(train::parse_config_text(tiny_config(c, 1, 16), "c.json"), sig)
+                .steps == 0);
+    const auto wa = nn::load_model(a + "/last.g2l").net->state_dict();
+    const auto wb = nn::load_model(b + "/last.g2l").net->state_dict();
+    const auto wc = nn::load_model(c + "/last.g2l").net->state_dict();
+    REQUIRE(wa.size() == wb.size());
+    int differ_c = 0;
+    for (const auto& [name, t] : wa) {
+        INFO(name);
+        REQUIRE(wb.count(name));
+        REQUIRE(std::memcmp(wb.at(name).data(), t.data(), t.nbytes()) == 0);
+        differ_c += std::memcmp(wc.at(name).data(), t.data(), t.nbytes()) != 0;
+    }
+    CHECK(differ_c > 0);  // 4 steps moved A's weights away from the initialisation
+    // Started over (--force), B trains from A's weights with a fresh optimiser from step 0.
+    opt.max_steps = 2;
+    opt.force = true;
+    REQUIRE(train::run_training(cb, opt).steps == 2);
+    opt.force = false;
+    // Another network or missing file: named, before any step.
+    auto bad = nlohmann::json::parse(tiny_config(testing::temp_dir("init_d"), 1, 16));
+    bad["model"]["init"] = a + "/last.g2l";
+    bad["model"]["width"] = 0.25;
+    REQUIRE_THROWS_WITH(train::run_training(train::parse_config_text(bad.dump(), "d.json"), opt),
+                        Catch::Contains("model.init '" + a + "/last.g2l': its network") &&
+                            Catch::Contains("width 0.125") && Catch::Contains("width 0.25"));
+    bad["run_dir"] = testing::temp_dir("init_e");
+    bad["model"]["width"] = 0.125;
+    bad["data"]["object_ids"] = {14, 8};
+    REQUIRE_THROWS_WITH(train::run_training(train::parse_config_text(bad.dump(), "e.json"), opt),
+                        Catch::Contains("its objects differ"));
+    bad["run_dir"] = testing::temp_dir("init_f");
+    bad["data"]["object_ids"] = {8, 14};
+    bad["model"]["init"] = a + "/missing.g2l";
+    REQUIRE_THROWS_WITH(train::run_training(train::parse_config_text(bad.dump(), "f.json"), opt),
+                        Catch::Contains("missing.g2l"));
 }
 
 TEST_CASE("g2l_train: a signal while the batch is gathered stops at once and resumes, and a batch "

@@ -56,7 +56,8 @@ json everything() {
                    "surface_spacing_mm": 3, "min_points": 20, "min_visib_fract": 0.3},
       "augment": {"enabled": false, "shift_mm": [1, 2, 3], "rot_deg": 15, "point_noise_mm": 1.5},
       "model": {"num_classes": 21, "keypoints": "fps12", "evf": false, "rre": false,
-                "width": 0.5, "dropout": 0.1, "out_scale_mm": 100, "rot_unit": "mm", "class_heads": true},
+                "width": 0.5, "dropout": 0.1, "out_scale_mm": 100, "rot_unit": "mm", "class_heads": true,
+                "init": "/models/start.g2l"},
       "loss": {"seg": 1, "t": 2, "vec": 3, "kp": 4, "res": 5, "t_loss": "smooth_l1",
                "symmetric_targets": true, "rot_centre": "pred", "rot_centre_noise_mm": 7,
                "rot_gt_points_epochs": 2, "rot_only_epochs": 3},
@@ -144,6 +145,7 @@ TEST_CASE("config: defaults are the paper's values", "[config]") {
     CHECK(c.model.dropout == 0.2);
     CHECK(c.model.out_scale_mm == 1.0);
     CHECK(c.model.rot_unit == "kp_rms");
+    CHECK(c.model.init.empty());
     CHECK(c.loss.rot_centre == "gt");
     CHECK(c.loss.rot_centre_noise_mm == 0);
     CHECK(c.loss.rot_gt_points_epochs == 0);
@@ -265,6 +267,7 @@ TEST_CASE("config: every key round-trips through config_to_json", "[config]") {
     CHECK(c.train.time_limit_min == 1.5);
     CHECK(c.train.time_schedule);
     CHECK(c.train.log_every == 5);
+    CHECK(c.model.init == "/models/start.g2l");
 
     // Print -> parse -> print is a fixed point, and the printed JSON has every input key with
     // the same value (the scene object is kept verbatim).

@@ -83,7 +83,8 @@ struct SceneConfig {
     double tall_prob = 0;
     /// "resting" mode: unannotated cuboid blocks on the table (edge lengths uniform in
     /// block_size_mm, random yaw and grey level), drawn before the objects: the wooden block of
-    /// YCB-Video, boxes, books. They are distractors (instance id -1).
+    /// YCB-Video, boxes, books. They are unannotated distractors (in RenderedFrame::distractor_mask)
+    /// and, as block_lookalike_tol says, marked in RenderedFrame::block_mask.
     int blocks_min = 0, blocks_max = 0;
     std::array<double, 2> block_size_mm{{40, 200}};
     /// Which blocks RenderedFrame::block_mask marks: 0 (default) every block; > 0 only the

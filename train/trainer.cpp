@@ -258,6 +258,31 @@ void check_step_memory(const TrainConfig& cfg, int64_t local_batch) {
               " fits) or sampling.points");
 }
 
+// model.init: the model file, checked against the config before the run directory and the
+// data are made (a wrong file is named at once, not after minutes of data preparation): the
+// same network (classes, keypoints, blocks, width, units, heads) and the same data.object_ids
+// in the same order.
+nn::LoadedModel load_init_model(const TrainConfig& cfg) {
+    const std::string& path = cfg.model.init;
+    nn::LoadedModel from = nn::load_model(path);
+    // "bbx8", "fps4", "fps8", "fps12" (validated by the config): the count follows the kind.
+    const int keypoints = std::atoi(cfg.model.keypoints.c_str() + 3);
+    const nn::G2LConfig want = model_config(cfg, keypoints);
+    const auto arch = [](const nn::G2LConfig& c) {
+        return cat("num_classes ", c.num_classes, ", keypoints ", c.num_keypoints, ", evf ",
+                   c.evf, ", rre ", c.rre, ", width ", c.width, ", out_scale_mm ",
+                   c.out_scale_mm, ", rot_unit ", c.rot_unit, ", class_heads ", c.class_heads);
+    };
+    G2L_CHECK(arch(from.net->config()) == arch(want), "model.init '", path, "': its network (",
+              arch(from.net->config()), ") is not the config's model (", arch(want), ")");
+    std::map<int, int> class_of;
+    for (size_t i = 0; i < cfg.data.object_ids.size(); ++i)
+        class_of[cfg.data.object_ids[i]] = int(i);
+    G2L_CHECK(from.class_of == class_of, "model.init '", path,
+              "': its objects differ from data.object_ids (the same ids in the same order)");
+    return from;
+}
+
 // The pose networks' training task on the loop (train/loop.h): a batch of point-cloud crops
 // from the epoch's visiting order, the G2L-Net step (train/pipeline.h), validation on the
 // configured BOP sets, checkpoints with the resume state.
@@ -296,20 +321,9 @@ public:
         s.epoch_loss = st.epoch_loss, s.best_val = st.best_val, s.seconds = st.seconds;
         return s;
     }
-    /// Fine-tuning (model.init): the weights of a model file of the same network and objects,
-    /// with this run's fresh optimiser and schedule.
-    void init_from(const std::string& path) {
-        const nn::LoadedModel from = nn::load_model(path);
-        const nn::G2LConfig& a = from.net->config();
-        const auto arch = [](const nn::G2LConfig& c) {
-            return cat("num_classes ", c.num_classes, ", keypoints ", c.num_keypoints, ", evf ",
-                       c.evf, ", rre ", c.rre, ", width ", c.width, ", out_scale_mm ",
-                       c.out_scale_mm, ", rot_unit ", c.rot_unit, ", class_heads ", c.class_heads);
-        };
-        G2L_CHECK(arch(a) == arch(mc_), "model.init '", path, "': its network (", arch(a),
-                  ") is not the config's model (", arch(mc_), ")");
-        G2L_CHECK(from.class_of == rd_.class_of, "model.init '", path,
-                  "': its objects differ from data.object_ids (the same ids in the same order)");
+    /// Fine-tuning (model.init): the weights of a model file already checked by
+    /// load_init_model, with this run's fresh optimiser and schedule.
+    void init_from(const nn::LoadedModel& from) {
         net_.load_state_dict(from.net->state_dict(), true);
     }
     int64_t parameters() const {
@@ -525,6 +539,9 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
     const bool progress = opt.progress && dist::is_root();
     const std::pair<int64_t, int64_t> shard = dist::shard(cfg.train.batch);
     check_step_memory(cfg, shard.second - shard.first);  // before anything is written or read
+    std::unique_ptr<nn::LoadedModel> init;  // model.init, for a run that does not resume
+    if (opt.resume_dir.empty() && !cfg.model.init.empty())
+        init = std::make_unique<nn::LoadedModel>(load_init_model(cfg));
     const RunDir run(run_dir, !opt.resume_dir.empty(), opt.force, {"steps.jsonl", "epochs.jsonl"},
                      dist::is_root());
     RunData rd = prepare_data(cfg, progress);
@@ -540,8 +557,8 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
                   "on, resume with --set train.epochs=N (N > ", cfg.train.epochs, ")");
         run.trim_log("steps.jsonl", "step", start.step);  // a killed run logged past it
         run.trim_log("epochs.jsonl", "epoch", start.epoch - 1);
-    } else if (!cfg.model.init.empty()) {
-        task.init_from(cfg.model.init);
+    } else if (init) {
+        task.init_from(*init);
         if (progress) std::printf("model.init: the weights of %s\n", cfg.model.init.c_str());
     }
     run.begin(config_to_json(cfg) + "\n");

@@ -180,13 +180,16 @@ TEST_CASE("g2l_train: model.init starts from another run's weights with a fresh 
     opt.force = true;
     REQUIRE(train::run_training(cb, opt).steps == 2);
     opt.force = false;
-    // Another network or missing file: named, before any step.
-    auto bad = nlohmann::json::parse(tiny_config(testing::temp_dir("init_d"), 1, 16));
+    // Another network or missing file: named before the run directory or the data are touched
+    // (nothing is written there).
+    const std::string d = testing::temp_dir("init_d");
+    auto bad = nlohmann::json::parse(tiny_config(d, 1, 16));
     bad["model"]["init"] = a + "/last.g2l";
     bad["model"]["width"] = 0.25;
     REQUIRE_THROWS_WITH(train::run_training(train::parse_config_text(bad.dump(), "d.json"), opt),
                         Catch::Contains("model.init '" + a + "/last.g2l': its network") &&
                             Catch::Contains("width 0.125") && Catch::Contains("width 0.25"));
+    CHECK(testing::dir_entries(d).empty());
     bad["run_dir"] = testing::temp_dir("init_e");
     bad["model"]["width"] = 0.125;
     bad["data"]["object_ids"] = {14, 8};
@@ -197,6 +200,7 @@ TEST_CASE("g2l_train: model.init starts from another run's weights with a fresh 
     bad["model"]["init"] = a + "/missing.g2l";
     REQUIRE_THROWS_WITH(train::run_training(train::parse_config_text(bad.dump(), "f.json"), opt),
                         Catch::Contains("missing.g2l"));
+    CHECK(testing::dir_entries(bad["run_dir"].get<std::string>()).empty());
 }
 
 TEST_CASE("g2l_train: a signal while the batch is gathered stops at once and resumes, and a batch "

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <future>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 
 #include "core/autograd.h"
@@ -115,10 +116,17 @@ void preflight_images(const RunData& rd, bool verbose) {
                     "(headers)\n", decoded, probed);
 }
 
+// obj_id -> class index: its position in data.object_ids.
+std::map<int, int> class_index(const TrainConfig& cfg) {
+    std::map<int, int> class_of;
+    for (size_t i = 0; i < cfg.data.object_ids.size(); ++i)
+        class_of[cfg.data.object_ids[i]] = int(i);
+    return class_of;
+}
+
 RunData prepare_data(const TrainConfig& cfg, bool verbose) {
     RunData rd;
-    for (size_t i = 0; i < cfg.data.object_ids.size(); ++i)
-        rd.class_of[cfg.data.object_ids[i]] = int(i);
+    rd.class_of = class_index(cfg);
     auto add = [&](const SourceConfig& s, std::vector<RunData::Src>& list) {
         RunData::Src src;
         src.cfg = &s;
@@ -275,10 +283,7 @@ nn::LoadedModel load_init_model(const TrainConfig& cfg) {
     };
     G2L_CHECK(arch(from.net->config()) == arch(want), "model.init '", path, "': its network (",
               arch(from.net->config()), ") is not the config's model (", arch(want), ")");
-    std::map<int, int> class_of;
-    for (size_t i = 0; i < cfg.data.object_ids.size(); ++i)
-        class_of[cfg.data.object_ids[i]] = int(i);
-    G2L_CHECK(from.class_of == class_of, "model.init '", path,
+    G2L_CHECK(from.class_of == class_index(cfg), "model.init '", path,
               "': its objects differ from data.object_ids (the same ids in the same order)");
     return from;
 }
@@ -539,9 +544,8 @@ TrainSummary run_training(const TrainConfig& cfg, const TrainOptions& opt) {
     const bool progress = opt.progress && dist::is_root();
     const std::pair<int64_t, int64_t> shard = dist::shard(cfg.train.batch);
     check_step_memory(cfg, shard.second - shard.first);  // before anything is written or read
-    std::unique_ptr<nn::LoadedModel> init;  // model.init, for a run that does not resume
-    if (opt.resume_dir.empty() && !cfg.model.init.empty())
-        init = std::make_unique<nn::LoadedModel>(load_init_model(cfg));
+    std::optional<nn::LoadedModel> init;  // model.init, for a run that does not resume
+    if (opt.resume_dir.empty() && !cfg.model.init.empty()) init.emplace(load_init_model(cfg));
     const RunDir run(run_dir, !opt.resume_dir.empty(), opt.force, {"steps.jsonl", "epochs.jsonl"},
                      dist::is_root());
     RunData rd = prepare_data(cfg, progress);

@@ -553,8 +553,9 @@ void Evaluation::gt_frame(const data::Frame& f) {
             r.refine_hyp = o.refine_hypothesis;
             r.refine_cluster = o.refine_cluster;
             r.fit_mm = o.fit_mm;
-            r.gt_fit_mm = geom::fit_error(*pipe_.mesh(inst.obj_id)->tree, obs, inst.pose,
-                                          0.1 * meta_.at(inst.obj_id).diameter);
+            const geom::DepthImage di{depth.data(), K};
+            r.gt_fit_mm = geom::pose_cost(*pipe_.mesh(inst.obj_id)->tree, pipe_.mesh(inst.obj_id)->info,
+                                          obs, inst.pose, {}, &di);
         }
         r.est = o.pose;
         r.found = true;

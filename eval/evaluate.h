@@ -128,7 +128,7 @@ struct InstanceResult {
     int refine_cluster = -1;       ///< refinement: -1 all object points, else the cluster that won
     int refine_hyp = -1;           ///< refinement: -1 none, 0 the network's pose, else the turn
     double fit_mm = -1;            ///< refinement: the final fit (geometry/refine.h)
-    double gt_fit_mm = -1;         ///< refinement: the same fit for the ground-truth pose
+    double gt_fit_mm = -1;         ///< refinement: its cost of the ground-truth pose (geom::pose_cost)
     // The hypotheses road (detections):
     bool reported = false;         ///< an accepted pose was matched to this instance
     /// A reported pose that matches no ground-truth instance (its errors are not set; obj_id,

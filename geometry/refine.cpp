@@ -735,7 +735,54 @@ std::vector<std::vector<int64_t>> cluster_sets(const Points& obs_all, const Mode
     return out;
 }
 
+// Every tree point's row in model_points strided rows (what the penalties project).
+Points strided_model_points(const ModelKdTree& tree, int model_points) {
+    const Points& tp = tree.points();
+    const int64_t nm = std::min<int64_t>(tp.rows(), std::max(1, model_points));
+    Points sub(nm, 3);
+    for (int64_t i = 0; i < nm; ++i) sub.row(i) = tp.row(i * tp.rows() / nm);
+    return sub;
+}
+
+// The refinement's cost of `pose` given its fit: fit + free_space_weight * cap * (the fraction
+// of model_sub violating free space + the fraction beneath the support plane, when one was
+// found); the violating fraction to *viol.
+double penalised(const Points& model_sub, const Pose& p, double fit, const DepthImage* depth,
+                 const Plane* plane, const RefineOptions& opt, double diameter, double* viol) {
+    *viol = depth ? free_space_violation(model_sub, p, *depth, opt.free_space_frac * diameter) : 0.0;
+    if (plane) {  // model points beneath the support plane
+        const int64_t nm = model_sub.rows();
+        const Eigen::Vector3d pn = p.R.transpose() * plane->n;
+        const double pd = plane->n.dot(p.t) + plane->d;
+        int64_t under = 0;
+        for (int64_t i = 0; i < nm; ++i)
+            under += pn.dot(model_sub.row(i).transpose().cast<double>()) + pd < -opt.plane_depth_mm;
+        *viol += double(under) / double(nm);
+    }
+    return fit + opt.free_space_weight * opt.inlier_frac * diameter * *viol;
+}
+
+// The observed points a search uses: at most max_points, evenly strided.
+Points strided_observed(const Points& src, int max_points) {
+    const int64_t n_src = src.rows(), n = std::min<int64_t>(n_src, max_points);
+    Points obs(n, 3);
+    for (int64_t i = 0; i < n; ++i) obs.row(i) = src.row(i * n_src / n);
+    return obs;
+}
+
 }  // namespace
+
+double pose_cost(const ModelKdTree& tree, const ModelInfo& info, const Points& obs,
+                 const Pose& pose, const RefineOptions& opt, const DepthImage* depth) {
+    check_refine_inputs(tree, info, obs, pose, opt, depth, nullptr);
+    Plane plane;
+    const bool has_plane = depth && opt.support_plane && find_support_plane(obs, *depth, opt, &plane);
+    double viol = 0;
+    return penalised(strided_model_points(tree, opt.model_points), pose,
+                     fit_error(tree, strided_observed(obs, opt.max_points), pose,
+                               opt.inlier_frac * info.diameter),
+                     depth, has_plane ? &plane : nullptr, opt, info.diameter, &viol);
+}
 
 RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const Points& obs_all,
                          const Pose& init, const RefineOptions& opt, const DepthImage* depth,
@@ -755,33 +802,15 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
     const Eigen::Vector3d c = info.min + 0.5 * info.size;
     const std::vector<Eigen::Matrix3d> T =
         opt.hypotheses ? turns(opt.axis_steps) : std::vector<Eigen::Matrix3d>{Eigen::Matrix3d::Identity()};
-    const Points& tp = tree.points();
-    const int64_t nm = std::min<int64_t>(tp.rows(), std::max(1, opt.model_points));
-    Points model_sub(nm, 3);
-    for (int64_t i = 0; i < nm; ++i) model_sub.row(i) = tp.row(i * tp.rows() / nm);
+    const Points model_sub = strided_model_points(tree, opt.model_points);
     auto cost = [&](const Pose& p, double fit, double* viol) {
-        *viol = depth ? free_space_violation(model_sub, p, *depth, opt.free_space_frac * info.diameter)
-                      : 0.0;
-        if (base.plane) {  // model points beneath the support plane
-            const Eigen::Vector3d pn = p.R.transpose() * plane.n;
-            const double pd = plane.n.dot(p.t) + plane.d;
-            int64_t under = 0;
-            for (int64_t i = 0; i < nm; ++i)
-                under += pn.dot(model_sub.row(i).transpose().cast<double>()) + pd < -opt.plane_depth_mm;
-            *viol += double(under) / double(nm);
-        }
-        return fit + opt.free_space_weight * cap * *viol;
+        return penalised(model_sub, p, fit, depth, base.plane ? &plane : nullptr, opt,
+                         info.diameter, viol);
     };
-    // The search from the networks' pose and its turns over one set of observed points.
     // The search from the networks' pose and its turns over one set of observed points.
     auto search = [&](const Points& src) {
         RefineResult r = base;
-        const int64_t n_src = src.rows();
-        const int64_t n = std::min<int64_t>(n_src, opt.max_points);
-        Points obs(n, 3);
-        for (int64_t i = 0; i < n; ++i) {
-            obs.row(i) = src.row(i * n_src / n);
-        }
+        const Points obs = strided_observed(src, opt.max_points);
         Icp icp{tree, obs, normals, cap, {}, {}, {}, {}, {}};
         struct Hyp { Pose pose; double fit; int index; double viol = 0; };
         // Each start is independent (its own copy of the ICP scratch): the starts run in

@@ -145,7 +145,9 @@ struct DepthImage {
 
 struct RefineResult {
     Pose pose;
-    double fit_mm = 0;      ///< mean observed-point distance to the posed model, capped (see above)
+    /// the cost the search ranks by (pose_cost): the mean observed-point distance to the posed
+    /// model, capped (see above), plus the free-space and support-plane penalties
+    double fit_mm = 0;
     double start_fit_mm = 0;  ///< the same for the refined network pose (hypothesis 0)
     /// fraction of projected model points violating free space, plus the fraction beneath the
     /// support plane when one was found
@@ -189,6 +191,16 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
                          const Pose& init, const RefineOptions& opt = {},
                          const DepthImage* depth = nullptr, const Points* normals = nullptr,
                          const ClosestPointGrid* grid = nullptr);
+
+/// The cost refine_pose ranks its poses by, of `pose` as it is (no ICP step): the capped mean
+/// distance of the observed points (at most opt.max_points, strided) to the posed model, plus
+/// opt.free_space_weight * cap times the free-space and support-plane violations (the plane
+/// found around `obs` as refine_pose finds it). What RefineResult::fit_mm holds for the pose
+/// refine_pose returns; g2l_eval writes it for the ground-truth pose (gt_fit_mm) to tell a
+/// search that missed a better-fitting pose from a cost that prefers a wrong one. Throws like
+/// refine_pose.
+double pose_cost(const ModelKdTree& tree, const ModelInfo& info, const Points& obs,
+                 const Pose& pose, const RefineOptions& opt = {}, const DepthImage* depth = nullptr);
 
 /// Fraction of `model_pts` (model frame) posed at `pose` that project onto a measured pixel of
 /// `depth` and lie in front of the measured surface by more than tol_mm, among those that

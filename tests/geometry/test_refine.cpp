@@ -220,6 +220,24 @@ Intrinsics table_camera() {
     return K;
 }
 
+// The bumped box with its bump towards the camera, resting on the table at 1000 mm (it spans
+// 960-1000 mm), its surface points as observed and the depth image.
+struct BoxOnTable {
+    Points model = bumped_box();
+    ModelKdTree tree{model};
+    ModelInfo info = compute_model_info(model);
+    Pose gt = [] {
+        Pose p;
+        p.R = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+        p.t = Eigen::Vector3d(0, 0, 980);
+        return p;
+    }();
+    Intrinsics K = table_camera();
+    Points obs = transform(model, gt);
+    std::vector<float> depth = table_with(obs, K);
+    DepthImage di{depth.data(), K};
+};
+
 }  // namespace
 
 TEST_CASE("fit_plane: the table around an object, deterministic, no depth, bad options",
@@ -261,17 +279,12 @@ TEST_CASE("fit_plane: the table around an object, deterministic, no depth, bad o
 
 TEST_CASE("refine_pose: a pose sunk into the support plane pays for it, without the plane it "
           "does not", "[geometry][refine]") {
-    // The bumped box with its bump towards the camera, resting on a table at 1000 mm.
-    const Points model = bumped_box();
-    const ModelKdTree tree(model);
-    const ModelInfo info = compute_model_info(model);
-    Pose gt;
-    gt.R = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
-    gt.t = Eigen::Vector3d(0, 0, 980);  // the box spans 960-1000 mm: it rests on the table
-    const Intrinsics K = table_camera();
-    const Points obs = transform(model, gt);
-    const std::vector<float> depth = table_with(obs, K);
-    const DepthImage di{depth.data(), K};
+    const BoxOnTable scene;
+    const ModelKdTree& tree = scene.tree;
+    const ModelInfo& info = scene.info;
+    const Pose& gt = scene.gt;
+    const Points& obs = scene.obs;
+    const DepthImage& di = scene.di;
     RefineOptions opt;
     opt.hypotheses = false;
     opt.iterations = opt.coarse_iterations = 0;  // score the starts as they are
@@ -295,6 +308,35 @@ TEST_CASE("refine_pose: a pose sunk into the support plane pays for it, without 
     CHECK_FALSE(refine_pose(tree, info, obs, gt, opt, &di).plane);
     opt.plane_tol_mm = 0;
     CHECK_THROWS_WITH(refine_pose(tree, info, obs, gt, opt, &di), Contains("plane_tol_mm 0"));
+}
+
+TEST_CASE("pose_cost: refine_pose's cost of a pose as it is; the sunk pose costs more; bad input",
+          "[geometry][refine]") {
+    const BoxOnTable b;
+    RefineOptions opt;
+    opt.hypotheses = false;
+    opt.iterations = opt.coarse_iterations = 0;  // refine_pose scores its start as it is
+    Pose sunk = b.gt;
+    sunk.t.z() += 30;
+    for (const Pose& p : {b.gt, sunk}) {
+        const RefineResult r = refine_pose(b.tree, b.info, b.obs, p, opt, &b.di);
+        CHECK(pose_cost(b.tree, b.info, b.obs, p, opt, &b.di) == Approx(r.fit_mm).margin(1e-9));
+        // Without the depth image (and every observed point): the capped fit alone.
+        RefineOptions all = opt;
+        all.max_points = int(b.obs.rows());
+        CHECK(pose_cost(b.tree, b.info, b.obs, p, all) ==
+              Approx(fit_error(b.tree, b.obs, p, opt.inlier_frac * b.info.diameter)).margin(1e-9));
+    }
+    CHECK(pose_cost(b.tree, b.info, b.obs, b.gt, opt, &b.di) < 0.05);
+    // 30 mm into the table: the support plane adds its penalty to the fit.
+    CHECK(pose_cost(b.tree, b.info, b.obs, sunk, opt, &b.di) >
+          pose_cost(b.tree, b.info, b.obs, sunk, opt) + 0.25 * opt.inlier_frac * b.info.diameter);
+    CHECK_THROWS_WITH(pose_cost(b.tree, b.info, b.obs.topRows(2), b.gt), Contains("at least 3 observed points, got 2"));
+    Pose nan_pose = b.gt;
+    nan_pose.R(0, 0) = std::nan("");
+    CHECK_THROWS_WITH(pose_cost(b.tree, b.info, b.obs, nan_pose), Contains("not finite"));
+    const DepthImage empty{};
+    CHECK_THROWS_WITH(pose_cost(b.tree, b.info, b.obs, b.gt, {}, &empty), Contains("depth image"));
 }
 
 TEST_CASE("refine_pose: a neighbouring object's points form their own cluster and are left out",

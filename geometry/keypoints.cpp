@@ -56,14 +56,18 @@ Points farthest_point_sampling(const Points& pts, int k, int start) {
     return out;
 }
 
-Points keypoints(const Points& model_pts, const ModelInfo& info, const std::string& kind) {
-    if (kind == "bbx8") return bbox_corners(info);
-    if (kind == "fps4") return farthest_point_sampling(model_pts, 4);
-    if (kind == "fps8") return farthest_point_sampling(model_pts, 8);
-    if (kind == "fps12") return farthest_point_sampling(model_pts, 12);
+int keypoint_count(const std::string& kind) {
+    if (kind == "bbx8" || kind == "fps8") return 8;
+    if (kind == "fps4") return 4;
+    if (kind == "fps12") return 12;
     G2L_CHECK(false, "keypoints: unknown keypoint kind '", kind,
               "' (expected bbx8, fps4, fps8 or fps12)");
-    return {};
+    return 0;
+}
+
+Points keypoints(const Points& model_pts, const ModelInfo& info, const std::string& kind) {
+    const int k = keypoint_count(kind);  // throws for an unknown kind
+    return kind == "bbx8" ? bbox_corners(info) : farthest_point_sampling(model_pts, k);
 }
 
 Points keypoints(const Mesh& mesh, const ModelInfo& info, const std::string& kind) {

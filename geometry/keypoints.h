@@ -27,6 +27,10 @@ Points farthest_point_sampling(const Points& pts, int k, int start = -1);
 /// Throws g2l::Error naming `kind` if it is none of these.
 Points keypoints(const Points& model_pts, const ModelInfo& info, const std::string& kind);
 
+/// How many keypoints `kind` gives (bbx8 and fps8: 8, fps4: 4, fps12: 12), without a model.
+/// Throws g2l::Error naming `kind` if it is none of these.
+int keypoint_count(const std::string& kind);
+
 /// keypoints() on the vertices of `mesh`.
 Points keypoints(const Mesh& mesh, const ModelInfo& info, const std::string& kind);
 

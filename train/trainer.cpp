@@ -273,16 +273,15 @@ void check_step_memory(const TrainConfig& cfg, int64_t local_batch) {
 nn::LoadedModel load_init_model(const TrainConfig& cfg) {
     const std::string& path = cfg.model.init;
     nn::LoadedModel from = nn::load_model(path);
-    // "bbx8", "fps4", "fps8", "fps12" (validated by the config): the count follows the kind.
-    const int keypoints = std::atoi(cfg.model.keypoints.c_str() + 3);
-    const nn::G2LConfig want = model_config(cfg, keypoints);
-    const auto arch = [](const nn::G2LConfig& c) {
+    const nn::G2LConfig want = model_config(cfg, geom::keypoint_count(cfg.model.keypoints));
+    const auto arch = [](const nn::G2LConfig& c) {  // what the error shows
         return cat("num_classes ", c.num_classes, ", keypoints ", c.num_keypoints, ", evf ",
                    c.evf, ", rre ", c.rre, ", width ", c.width, ", out_scale_mm ",
                    c.out_scale_mm, ", rot_unit ", c.rot_unit, ", class_heads ", c.class_heads);
     };
-    G2L_CHECK(arch(from.net->config()) == arch(want), "model.init '", path, "': its network (",
-              arch(from.net->config()), ") is not the config's model (", arch(want), ")");
+    G2L_CHECK(nn::same_architecture(from.net->config(), want), "model.init '", path,
+              "': its network (", arch(from.net->config()), ") is not the config's model (",
+              arch(want), ")");
     G2L_CHECK(from.class_of == class_index(cfg), "model.init '", path,
               "': its objects differ from data.object_ids (the same ids in the same order)");
     return from;

@@ -72,6 +72,13 @@ Tensor G2LNet::t_forward(const Tensor& x, const Tensor& onehot) {
     return scaled(tnet_->forward(x, onehot));
 }
 
+bool same_architecture(const G2LConfig& a, const G2LConfig& b) {
+    return a.num_classes == b.num_classes && a.num_keypoints == b.num_keypoints &&
+           a.evf == b.evf && a.rre == b.rre && a.width == b.width &&
+           a.out_scale_mm == b.out_scale_mm && a.rot_unit == b.rot_unit &&
+           a.class_heads == b.class_heads;
+}
+
 double rotation_scale(const std::string& unit, const std::vector<Eigen::Vector3f>& kp) {
     if (unit == "mm") return 1.0;
     G2L_CHECK(unit == "kp_rms", "rotation unit must be \"mm\" or \"kp_rms\", got \"", unit, "\"");

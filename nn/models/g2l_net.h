@@ -45,6 +45,11 @@ struct G2LConfig {
     bool class_heads = false;
 };
 
+/// The same network: every field that shapes the parameters or what they compute (classes,
+/// keypoints, evf, rre, width, out_scale_mm, rot_unit, class_heads); dropout rates and the
+/// seed only change training, so two configs differing in them load each other's weights.
+bool same_architecture(const G2LConfig& a, const G2LConfig& b);
+
 /// Scale (mm per unit) of the rotation branch for an object with these model keypoints under
 /// `rot_unit`: 1 for "mm", sqrt(mean_k |kp_k|^2) for "kp_rms". Throws for another unit or
 /// degenerate keypoints.

@@ -82,4 +82,9 @@ TEST_CASE("keypoints dispatches on kind and rejects unknown kinds", "[geometry]"
     CHECK(keypoints(mesh, info, "fps8") == farthest_point_sampling(mesh.vertices, 8));
     CHECK(keypoints(mesh.vertices, info, "fps12").rows() == 12);
     REQUIRE_THROWS_WITH(keypoints(mesh, info, "fps9"), Contains("'fps9'"));
+    // The count each kind gives, without a model (what a config's network is built with).
+    for (const char* kind : {"bbx8", "fps4", "fps8", "fps12"})
+        CHECK(keypoint_count(kind) == keypoints(mesh, info, kind).rows());
+    REQUIRE_THROWS_WITH(keypoint_count("fps"), Contains("'fps'"));
+    REQUIRE_THROWS_WITH(keypoint_count(""), Contains("unknown keypoint kind ''"));
 }

@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: MIT
+#include <functional>
 #include <algorithm>
 #include <chrono>
 #include <iostream>
@@ -314,6 +315,30 @@ TEST_CASE("G2LNet: a tiny network overfits one batch with Adam", "[models][train
     }
     INFO("loss " << first << " -> " << last);
     CHECK(last < 0.45 * first);  // measured (2026-12-01): 7.79 -> 2.64 (x0.34)
+}
+
+TEST_CASE("same_architecture: every shaping field counts, dropout and seed do not", "[models]") {
+    const nn::G2LConfig a;
+    nn::G2LConfig b = a;
+    b.dropout = 0.5, b.rre_dropout = 0.1, b.seed = 99;  // training only
+    CHECK(nn::same_architecture(a, b));
+    const std::vector<std::function<void(nn::G2LConfig&)>> changes = {
+        [](nn::G2LConfig& c) { c.num_classes = 21; },
+        [](nn::G2LConfig& c) { c.num_keypoints = 12; },
+        [](nn::G2LConfig& c) { c.evf = false; },
+        [](nn::G2LConfig& c) { c.rre = false; },
+        [](nn::G2LConfig& c) { c.width = 0.5; },
+        [](nn::G2LConfig& c) { c.out_scale_mm = 100; },
+        [](nn::G2LConfig& c) { c.rot_unit = "kp_rms"; },
+        [](nn::G2LConfig& c) { c.class_heads = true; },
+    };
+    for (size_t i = 0; i < changes.size(); ++i) {
+        nn::G2LConfig c = a;
+        changes[i](c);
+        INFO("change " << i);
+        CHECK_FALSE(nn::same_architecture(a, c));
+        CHECK_FALSE(nn::same_architecture(c, a));
+    }
 }
 
 TEST_CASE("G2LNet: wrong input shapes and configs throw naming the value", "[models][errors]") {

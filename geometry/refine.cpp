@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "geometry/refine.h"
 
+#include <string>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -650,19 +651,20 @@ double free_space_violation(const Points& model_pts, const Pose& pose, const Dep
 namespace {
 
 // The inputs refine_pose refuses, named (a grid that is empty counts as none).
-void check_refine_inputs(const ModelKdTree& tree, const ModelInfo& info, const Points& obs_all,
-                         const Pose& init, const RefineOptions& opt, const DepthImage* depth,
-                         const ClosestPointGrid* grid) {
+void check_refine_inputs(const char* who, const ModelKdTree& tree, const ModelInfo& info,
+                         const Points& obs_all, const Pose& init, const RefineOptions& opt,
+                         const DepthImage* depth, const ClosestPointGrid* grid) {
     G2L_CHECK(std::isfinite(info.diameter) && info.diameter > 0,
-              "refine_pose: model diameter must be > 0, got ", info.diameter);
-    G2L_CHECK(obs_all.rows() >= 3, "refine_pose: need at least 3 observed points, got ",
+              who, ": model diameter must be > 0, got ", info.diameter);
+    G2L_CHECK(obs_all.rows() >= 3, who, ": need at least 3 observed points, got ",
               obs_all.rows());
-    G2L_CHECK(init.R.allFinite() && init.t.allFinite(), "refine_pose: the initial pose is not finite");
+    G2L_CHECK(init.R.allFinite() && init.t.allFinite(), who, ": the ",
+              std::string(who) == "refine_pose" ? "initial " : "", "pose is not finite");
     G2L_CHECK(opt.iterations >= 0 && opt.coarse_iterations >= 0 && opt.max_points >= 3 &&
                   opt.inlier_frac > 0 && opt.axis_steps >= 1 && opt.switch_ratio > 0 &&
                   opt.finalists >= 0 && opt.model_points >= 1 && opt.free_space_frac > 0 &&
                   opt.free_space_weight >= 0,
-              "refine_pose: invalid options (iterations ", opt.iterations, ", coarse_iterations ",
+              who, ": invalid options (iterations ", opt.iterations, ", coarse_iterations ",
               opt.coarse_iterations, ", max_points ", opt.max_points, ", inlier_frac ",
               opt.inlier_frac, ", axis_steps ", opt.axis_steps, ", switch_ratio ",
               opt.switch_ratio, ", finalists ", opt.finalists, ", model_points ",
@@ -670,29 +672,29 @@ void check_refine_inputs(const ModelKdTree& tree, const ModelInfo& info, const P
               ", free_space_weight ", opt.free_space_weight, ")");
     const int64_t n_all = obs_all.rows();
     for (int64_t i = 0; i < n_all; ++i)
-        G2L_CHECK(obs_all.row(i).allFinite(), "refine_pose: observed point ", i, " is not finite");
+        G2L_CHECK(obs_all.row(i).allFinite(), who, ": observed point ", i, " is not finite");
     G2L_CHECK(!depth || (depth->depth_mm && depth->K.width > 0 && depth->K.height > 0 &&
                          depth->K.fx > 0 && depth->K.fy > 0),
-              "refine_pose: the depth image needs a buffer, a size and focal lengths");
+              who, ": the depth image needs a buffer, a size and focal lengths");
     G2L_CHECK(std::isfinite(opt.cluster_frac) && opt.cluster_frac >= 0 &&
                   std::isfinite(opt.cluster_min_share) && opt.cluster_min_share >= 0 &&
                   opt.cluster_min_share <= 1,
-              "refine_pose: invalid cluster options (cluster_frac ", opt.cluster_frac,
+              who, ": invalid cluster options (cluster_frac ", opt.cluster_frac,
               ", cluster_min_share ", opt.cluster_min_share, ")");
     G2L_CHECK(!opt.support_plane || (opt.plane_tol_mm > 0 && opt.plane_depth_mm >= 0 &&
                                      opt.plane_region >= 0 && opt.plane_min_inliers >= 0 &&
                                      opt.plane_min_inliers <= 1),
-              "refine_pose: invalid support-plane options (plane_tol_mm ", opt.plane_tol_mm,
+              who, ": invalid support-plane options (plane_tol_mm ", opt.plane_tol_mm,
               ", plane_depth_mm ", opt.plane_depth_mm, ", plane_region ", opt.plane_region,
               ", plane_min_inliers ", opt.plane_min_inliers, ")");
-    G2L_CHECK(opt.polish_iterations >= 0, "refine_pose: polish_iterations must be >= 0, got ",
+    G2L_CHECK(opt.polish_iterations >= 0, who, ": polish_iterations must be >= 0, got ",
               opt.polish_iterations);
     G2L_CHECK(!grid || grid->margin_mm() >= opt.inlier_frac * info.diameter * (1 - 1e-9),
-              "refine_pose: the grid's margin (", grid ? grid->margin_mm() : 0.0,
+              who, ": the grid's margin (", grid ? grid->margin_mm() : 0.0,
               " mm) is below the inlier cap (", opt.inlier_frac * info.diameter,
               " mm): build it with ClosestPointGrid::for_refine");
     G2L_CHECK(!grid || grid->tree_points() == tree.size(),
-              "refine_pose: the grid was built over a tree of ", grid ? grid->tree_points() : 0,
+              who, ": the grid was built over a tree of ", grid ? grid->tree_points() : 0,
               " points, this tree has ", tree.size());
 }
 
@@ -774,7 +776,7 @@ Points strided_observed(const Points& src, int max_points) {
 
 double pose_cost(const ModelKdTree& tree, const ModelInfo& info, const Points& obs,
                  const Pose& pose, const RefineOptions& opt, const DepthImage* depth) {
-    check_refine_inputs(tree, info, obs, pose, opt, depth, nullptr);
+    check_refine_inputs("pose_cost", tree, info, obs, pose, opt, depth, nullptr);
     Plane plane;
     const bool has_plane = depth && opt.support_plane && find_support_plane(obs, *depth, opt, &plane);
     double viol = 0;
@@ -788,7 +790,7 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
                          const Pose& init, const RefineOptions& opt, const DepthImage* depth,
                          const Points* normals, const ClosestPointGrid* grid) {
     if (grid && grid->empty()) grid = nullptr;  // an empty grid is no grid
-    check_refine_inputs(tree, info, obs_all, init, opt, depth, grid);
+    check_refine_inputs("refine_pose", tree, info, obs_all, init, opt, depth, grid);
     const int64_t n_all = obs_all.rows();
     RefineResult base;
     base.observed = int(n_all);

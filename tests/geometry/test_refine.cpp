@@ -331,10 +331,11 @@ TEST_CASE("pose_cost: refine_pose's cost of a pose as it is; the sunk pose costs
     // 30 mm into the table: the support plane adds its penalty to the fit.
     CHECK(pose_cost(b.tree, b.info, b.obs, sunk, opt, &b.di) >
           pose_cost(b.tree, b.info, b.obs, sunk, opt) + 0.25 * opt.inlier_frac * b.info.diameter);
-    CHECK_THROWS_WITH(pose_cost(b.tree, b.info, b.obs.topRows(2), b.gt), Contains("at least 3 observed points, got 2"));
+    CHECK_THROWS_WITH(pose_cost(b.tree, b.info, b.obs.topRows(2), b.gt),
+                      Contains("pose_cost: need at least 3 observed points, got 2"));
     Pose nan_pose = b.gt;
     nan_pose.R(0, 0) = std::nan("");
-    CHECK_THROWS_WITH(pose_cost(b.tree, b.info, b.obs, nan_pose), Contains("not finite"));
+    CHECK_THROWS_WITH(pose_cost(b.tree, b.info, b.obs, nan_pose), Contains("pose_cost: the pose is not finite"));
     const DepthImage empty{};
     CHECK_THROWS_WITH(pose_cost(b.tree, b.info, b.obs, b.gt, {}, &empty), Contains("depth image"));
 }

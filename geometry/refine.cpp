@@ -9,6 +9,7 @@
 #include <cmath>
 #include <exception>
 #include <limits>
+#include <string>
 
 #ifdef _OPENMP
 #include <omp.h>

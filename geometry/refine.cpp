@@ -1,7 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include "geometry/refine.h"
 
-#include <string>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>

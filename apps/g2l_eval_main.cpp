@@ -58,6 +58,7 @@ json instance_json(const g2l::eval::InstanceResult& r, const std::string& set_na
         if (r.refine_hyp >= 0) {
             j["refine_hypothesis"] = r.refine_hyp;
             j["refine_cluster"] = r.refine_cluster;
+            j["alt_fit_mm"] = r.alt_fit_mm;
             j["fit_mm"] = r.fit_mm;
             j["gt_fit_mm"] = r.gt_fit_mm;
         }

@@ -317,6 +317,7 @@ json frame_json(const Job& j, const LoadedFrame& f, const std::vector<g2l::Objec
         // asked for and did not (no mesh of this object in --meshes).
         o["refined"] = p.refined;
         if (p.refined) o["fit_mm"] = p.fit_mm;
+        if (p.refined) o["alt_fit_mm"] = p.alt_fit_mm;
         if (p.ok() && !p.refined && refining) {
             char mesh_name[32];
             std::snprintf(mesh_name, sizeof mesh_name, "obj_%06d.ply", p.obj_id);

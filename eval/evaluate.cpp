@@ -255,7 +255,8 @@ private:
         ObjGeom g;
         g.pts.resize(keep, 3);
         for (int64_t i = 0; i < keep; ++i) g.pts.row(i) = mesh.vertices.row(i * nv / keep);
-        g.syms = geom::geometric_symmetries(*pipe_.mesh(obj_id)->tree, om.info);
+        const infer::PreparedMesh& pm = *pipe_.mesh(obj_id);  // its symmetries when refining
+        g.syms = pm.syms.empty() ? geom::geometric_symmetries(*pm.tree, om.info) : pm.syms;
         meta_[obj_id] = {om.name, om.info.diameter, om.info.symmetric,
                          int(std::max<size_t>(1, g.syms.size()))};
         model_geom_[obj_id] = std::move(g);
@@ -463,6 +464,7 @@ void Evaluation::matched_frame(const data::Frame& f) {
         r.ms = o.ms_crop + o.ms_seg + o.ms_t + o.ms_rot + o.ms_refine;
         r.refine_hyp = o.refine_hypothesis;
         r.refine_cluster = o.refine_cluster;
+        r.alt_fit_mm = o.alt_fit_mm;
         r.fit_mm = o.fit_mm;
         r.right = m.right[size_t(m.est_of[g])];
         r.box_hit = m.box_hit[size_t(m.est_of[g])] == 1;
@@ -552,6 +554,7 @@ void Evaluation::gt_frame(const data::Frame& f) {
                 obs.row(int64_t(j)) = o.crop.row(o.object_rows[j]);
             r.refine_hyp = o.refine_hypothesis;
             r.refine_cluster = o.refine_cluster;
+            r.alt_fit_mm = o.alt_fit_mm;
             r.fit_mm = o.fit_mm;
             const geom::DepthImage di{depth.data(), K};
             r.gt_fit_mm = geom::pose_cost(*pipe_.mesh(inst.obj_id)->tree, pipe_.mesh(inst.obj_id)->info,

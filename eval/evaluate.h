@@ -126,6 +126,7 @@ struct InstanceResult {
     geom::Pose est, gt;            ///< estimate (when found) and ground truth
     double ms = 0;                 ///< crop + networks (+ refinement), this instance
     int refine_cluster = -1;       ///< refinement: -1 all object points, else the cluster that won
+    double alt_fit_mm = -1;        ///< refinement: the best distinct pose's fit (PoseOutcome)
     int refine_hyp = -1;           ///< refinement: -1 none, 0 the network's pose, else the turn
     double fit_mm = -1;            ///< refinement: the final fit (geometry/refine.h)
     double gt_fit_mm = -1;         ///< refinement: its cost of the ground-truth pose (geom::pose_cost)

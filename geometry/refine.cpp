@@ -20,6 +20,7 @@
 #include "core/error.h"
 #include "core/job_pool.h"
 #include "geometry/kabsch.h"
+#include "geometry/metrics.h"
 
 namespace g2l::geom {
 
@@ -687,6 +688,8 @@ void check_refine_inputs(const char* who, const ModelKdTree& tree, const ModelIn
               who, ": invalid support-plane options (plane_tol_mm ", opt.plane_tol_mm,
               ", plane_depth_mm ", opt.plane_depth_mm, ", plane_region ", opt.plane_region,
               ", plane_min_inliers ", opt.plane_min_inliers, ")");
+    G2L_CHECK(std::isfinite(opt.alt_min_deg) && opt.alt_min_deg >= 0, who,
+              ": alt_min_deg must be finite and >= 0, got ", opt.alt_min_deg);
     G2L_CHECK(opt.polish_iterations >= 0, who, ": polish_iterations must be >= 0, got ",
               opt.polish_iterations);
     G2L_CHECK(!grid || grid->margin_mm() >= opt.inlier_frac * info.diameter * (1 - 1e-9),
@@ -788,7 +791,8 @@ double pose_cost(const ModelKdTree& tree, const ModelInfo& info, const Points& o
 
 RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const Points& obs_all,
                          const Pose& init, const RefineOptions& opt, const DepthImage* depth,
-                         const Points* normals, const ClosestPointGrid* grid) {
+                         const Points* normals, const ClosestPointGrid* grid,
+                         const std::vector<SymmetryTransform>* syms) {
     if (grid && grid->empty()) grid = nullptr;  // an empty grid is no grid
     check_refine_inputs("refine_pose", tree, info, obs_all, init, opt, depth, grid);
     const int64_t n_all = obs_all.rows();
@@ -852,6 +856,13 @@ RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const P
                 r.violation = final[i].viol;
                 r.hypothesis = final[i].index;
             }
+        // The best distinct pose among the finalists: a rotation away from the winner's, also
+        // modulo the model's symmetries when they are given.
+        for (const Hyp& y : final)
+            if ((r.alt_fit_mm < 0 || y.fit < r.alt_fit_mm) &&
+                (syms ? rotation_error_sym_deg(y.pose.R, r.pose.R, *syms)
+                      : rotation_error_deg(y.pose.R, r.pose.R)) > opt.alt_min_deg)
+                r.alt_fit_mm = y.fit;
         return r;
     };
     // The searches over all the points and over each cluster run together; the lowest cost

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "geometry/labels.h"
+#include "geometry/symmetry.h"
 #include "geometry/types.h"
 
 namespace g2l::geom {
@@ -55,6 +56,11 @@ struct RefineOptions {
     /// nearest to its cell's centre, up to sqrt(3) cells off). Each exact step costs ~10 grid
     /// steps; 3 keep the accuracy 10 gave, at a third of the cost (docs/results.md, issue 37).
     int polish_iterations = 3;
+    /// RefineResult::alt_fit_mm counts the finalists whose rotation lies more than this many
+    /// degrees from the winner's, modulo the model's symmetries when refine_pose is given them
+    /// (a box turned over onto itself is the same pose; a mug with its handle on the other side
+    /// is not).
+    double alt_min_deg = 30;
 };
 
 /// The model point nearest to the centre of each cell of a regular grid over the model points'
@@ -157,6 +163,12 @@ struct RefineResult {
     bool plane = false;     ///< a support plane was found and used
     int cluster = -1;       ///< -1: all observed points; else the cluster (largest first) that won
     int observed = 0;       ///< observed points the winning search used
+    /// The lowest cost (as fit_mm) among the winning search's finalists that are a distinct pose
+    /// (RefineOptions::alt_min_deg): a pose the depth also allows (a mug's handle
+    /// on the other side, a clamp's jaws the other way). Near fit_mm (it may be a little below:
+    /// switch_ratio), the depth cannot tell the two apart; -1 when no finalist is distinct (or
+    /// hypotheses are off).
+    double alt_fit_mm = -1;
 };
 
 /// The dominant plane of the measured pixels of `depth` in the image box [x0, x1) x [y0, y1)
@@ -186,11 +198,13 @@ double fit_error(const ModelKdTree& tree, const Points& obs, const Pose& pose, d
 /// same poses within a fraction of a millimetre
 /// (docs/results.md). Throws g2l::Error if obs has fewer than 3 rows, a point or the init pose
 /// is not finite, info.diameter is not > 0, or the grid was built over another tree or with a
-/// margin below the inlier cap (opt.inlier_frac * diameter).
+/// margin below the inlier cap (opt.inlier_frac * diameter). `syms` (geometric_symmetries of
+/// the model, optional) only decide which finalists are distinct poses (alt_fit_mm).
 RefineResult refine_pose(const ModelKdTree& tree, const ModelInfo& info, const Points& obs,
                          const Pose& init, const RefineOptions& opt = {},
                          const DepthImage* depth = nullptr, const Points* normals = nullptr,
-                         const ClosestPointGrid* grid = nullptr);
+                         const ClosestPointGrid* grid = nullptr,
+                         const std::vector<SymmetryTransform>* syms = nullptr);
 
 /// The cost refine_pose ranks its poses by, of `pose` as it is (no ICP step): the capped mean
 /// distance of the observed points (at most opt.max_points, strided) to the posed model, plus

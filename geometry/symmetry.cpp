@@ -152,16 +152,40 @@ std::vector<SymmetryTransform> geometric_symmetries(const ModelKdTree& tree, con
     if (!frame.aligned)
         for (auto& R : candidates) R = F * R * F.transpose();
     const double tol = opt.tolerance_frac * info.diameter;
-    std::vector<SymmetryTransform> out(1);  // identity
-    for (size_t i = 1; i < candidates.size(); ++i) {
+    // Each candidate on its own (in parallel; the list keeps the candidates' order). The mean
+    // error only grows towards its final value from below, so a candidate whose error sum
+    // already exceeds tol times the point count is rejected there (most are, after a small
+    // part of the points): the same verdicts as scoring every point, several times faster.
+    const Points& pts = tree.points();
+    const int64_t n = pts.rows();
+    const int64_t stride = std::max<int64_t>(1, (n + opt.max_points - 1) / opt.max_points);
+    const int64_t count = (n + stride - 1) / stride;
+    const double reject_above = tol * double(count);
+    std::vector<char> keep(candidates.size(), 0);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int64_t i = 1; i < int64_t(candidates.size()); ++i) {
         SymmetryTransform s;
-        s.R = candidates[i];
+        s.R = candidates[size_t(i)];
         s.t = c - s.R * c;  // rotate about the box centre
-        const SymmetryScore sc = symmetry_score(tree, s, opt.max_points);
-        if (sc.error_mm <= tol && (sc.error_mm <= opt.displacement_frac * sc.displacement_mm ||
-                                   sc.error_mm <= opt.noise_frac * info.diameter))
-            out.push_back(s);
+        double err = 0, moved = 0;
+        for (int64_t k = 0; k < n && err <= reject_above; k += stride) {
+            const Eigen::Vector3f p = pts.row(k).transpose();
+            const Eigen::Vector3f q = s.R * p + s.t;
+            err += tree.nearest(q);
+            moved += (q - p).norm();
+        }
+        if (err > reject_above) continue;
+        const double e = err / double(count), d = moved / double(count);
+        keep[size_t(i)] = e <= opt.displacement_frac * d || e <= opt.noise_frac * info.diameter;
     }
+    std::vector<SymmetryTransform> out(1);  // identity
+    for (size_t i = 1; i < candidates.size(); ++i)
+        if (keep[i]) {
+            SymmetryTransform s;
+            s.R = candidates[i];
+            s.t = c - s.R * c;
+            out.push_back(s);
+        }
     return out;
 }
 

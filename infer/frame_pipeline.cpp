@@ -44,6 +44,7 @@ PreparedMesh PreparedMesh::from_mesh(const geom::Mesh& mesh, const geom::ModelIn
     if (for_refine) {
         p.normals = p.tree->normals();
         p.grid = geom::ClosestPointGrid::for_refine(*p.tree, info);
+        p.syms = geom::geometric_symmetries(*p.tree, info);
     }
     return p;
 }
@@ -214,9 +215,10 @@ void FramePipeline::estimate(const float* depth, const geom::Intrinsics& K,
             ro.hypotheses = opt_.refine == Refinement::turns;
             const geom::DepthImage di{depth, K};
             const geom::RefineResult rr =
-                geom::refine_pose(*m.tree, m.info, obs, p.pose, ro, &di, &m.normals, &m.grid);
+                geom::refine_pose(*m.tree, m.info, obs, p.pose, ro, &di, &m.normals, &m.grid, &m.syms);
             p.pose = rr.pose;
             p.fit_mm = rr.fit_mm;
+            p.alt_fit_mm = rr.alt_fit_mm;
             p.refine_hypothesis = rr.hypothesis;
             p.refine_cluster = rr.cluster;
             p.refined = true;

@@ -21,6 +21,7 @@
 #include "geometry/crop.h"
 #include "geometry/model_info.h"
 #include "geometry/refine.h"
+#include "geometry/symmetry.h"
 #include "geometry/types.h"
 #include "geometry/verify.h"
 #include "nn/models/g2l_engine.h"
@@ -36,6 +37,9 @@ struct PreparedMesh {
     geom::Points normals;
     geom::ClosestPointGrid grid;
     geom::ModelInfo info;  ///< the box and diameter the refinement uses
+    /// The model's geometric symmetries (geometry/symmetry.h; with for_refine): which of the
+    /// refinement's finalists are distinct poses (PoseOutcome::alt_fit_mm).
+    std::vector<geom::SymmetryTransform> syms;
     /// Throws g2l::Error for a mesh without vertices or an info with diameter <= 0.
     static PreparedMesh from_mesh(const geom::Mesh& mesh, const geom::ModelInfo& info,
                                   bool for_refine);
@@ -79,6 +83,9 @@ struct PoseOutcome {
     /// With estimate's `verify`: the pose checked against the depth (status ok, a mesh).
     std::optional<geom::Verification> check;
     double fit_mm = -1;               ///< the refinement's final fit (geometry/refine.h)
+    /// the best fit of a distinct pose (RefineResult::alt_fit_mm): near fit_mm, the depth
+    /// cannot tell the pose from it; -1 when there was none
+    double alt_fit_mm = -1;
     int refine_hypothesis = -1, refine_cluster = -1;
     bool ok() const { return status == PoseStatus::ok; }
 };

@@ -217,6 +217,7 @@ ObjectPose to_public(const infer::PoseOutcome& o) {
     p.timings.total_ms = o.ms_crop + o.ms_seg + o.ms_t + o.ms_rot + o.ms_refine;
     p.refined = o.refined;
     p.fit_mm = o.fit_mm;
+    p.alt_fit_mm = o.alt_fit_mm;
     if (o.ok()) {
         for (int r = 0; r < 3; ++r) {
             for (int c = 0; c < 3; ++c) p.R[size_t(r * 3 + c)] = o.pose.R(r, c);

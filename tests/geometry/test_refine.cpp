@@ -14,6 +14,7 @@
 #include "geometry/metrics.h"
 #include "geometry/model_info.h"
 #include "geometry/refine.h"
+#include "geometry/symmetry.h"
 #include "geom_test_util.h"
 
 using namespace g2l;
@@ -98,6 +99,42 @@ TEST_CASE("refine_pose: the turned starts recover a box turned over, ICP alone d
     const RefineResult kept = refine_pose(tree, info, obs, gt, opt);
     CHECK(kept.hypothesis == 0);
     CHECK(rotation_error_deg(kept.pose.R, gt.R) < 0.5);
+}
+
+TEST_CASE("refine_pose: alt_fit_mm, the best distinct pose: a plain box's flips fit as well "
+          "unless its symmetries are given, the bumped box's do not", "[geometry][refine]") {
+    const Pose gt = gt_pose();
+    RefineOptions opt;
+    // A plain 120 x 60 x 40 box seen from all sides: turned over onto itself it fits as well.
+    const Points plain = test::box_surface(120, 60, 40, 4, Eigen::Vector3f::Zero());
+    const ModelKdTree plain_tree(plain);
+    const ModelInfo plain_info = compute_model_info(plain);
+    const Points plain_obs = transform(plain, gt);
+    const RefineResult r = refine_pose(plain_tree, plain_info, plain_obs, gt, opt);
+    CHECK(r.fit_mm < 0.1);
+    REQUIRE(r.alt_fit_mm >= 0);
+    CHECK(r.alt_fit_mm < r.fit_mm + 0.1);  // the flips: as good a fit, 180 degrees away
+    // With the box's symmetries those flips are the same pose: none left, or clearly worse.
+    const std::vector<SymmetryTransform> syms = geometric_symmetries(plain_tree, plain_info);
+    REQUIRE(syms.size() == 4);  // the identity and the three half-turns
+    const RefineResult s =
+        refine_pose(plain_tree, plain_info, plain_obs, gt, opt, nullptr, nullptr, nullptr, &syms);
+    CHECK(rotation_error_deg(s.pose.R, r.pose.R) < 1e-6);  // the pose itself does not change
+    CHECK(s.fit_mm == r.fit_mm);
+    CHECK((s.alt_fit_mm < 0 || s.alt_fit_mm > r.fit_mm + 2.0));
+    // The bumped box (no symmetry): every turn leaves the bump unexplained.
+    const Points bumped = bumped_box();
+    const ModelKdTree tree(bumped);
+    const ModelInfo info = compute_model_info(bumped);
+    const RefineResult b = refine_pose(tree, info, transform(bumped, gt), gt, opt);
+    CHECK(b.fit_mm < 0.1);
+    CHECK(b.alt_fit_mm > b.fit_mm + 2.0);
+    // Without the turned starts there is no finalist to compare.
+    opt.hypotheses = false;
+    CHECK(refine_pose(tree, info, transform(bumped, gt), gt, opt).alt_fit_mm == -1);
+    opt = {};
+    opt.alt_min_deg = -1;
+    CHECK_THROWS_WITH(refine_pose(tree, info, transform(bumped, gt), gt, opt), Contains("alt_min_deg"));
 }
 
 TEST_CASE("free_space_violation: model points in front of the measured surface", "[geometry][refine]") {

@@ -423,6 +423,11 @@ TEST_CASE("PoseEstimator: depth refinement against the meshes, and its option er
                     inst.obj_id, (t0 - inst.pose.t).norm(), (t1 - inst.pose.t).norm(), after[b].fit_mm);
         CHECK((t1 - inst.pose.t).norm() < (inst.obj_id == 8 ? 8.5 : 5.3) + 2.0);
         CHECK(after[b].fit_mm < (inst.obj_id == 8 ? 1.25 : 0.97) + 0.5);
+        // The best distinct pose's fit (the gelatin box's flips are its symmetries, not
+        // distinct poses): -1 without refinement, else -1 or a fit of its own.
+        std::printf("refine: object %d alt_fit %.2f mm\n", inst.obj_id, after[b].alt_fit_mm);
+        CHECK(before[b].alt_fit_mm == -1);
+        CHECK((after[b].alt_fit_mm == -1 || after[b].alt_fit_mm > 0));
         err_before += (t0 - inst.pose.t).norm();
         err_after += (t1 - inst.pose.t).norm();
     }

@@ -137,6 +137,13 @@ struct ObjectPose {
     /// posed mesh (each capped at 10% of the diameter) plus the free-space penalty; smaller is a
     /// better fit to the depth. -1 without refinement.
     double fit_mm = -1;
+    /// With EstimatorOptions::refine: the fit (as fit_mm) of the best *distinct* pose the
+    /// refinement found — a rotation more than 30 degrees from this one that the model's
+    /// symmetries do not explain (a mug's handle on the other side, a clamp's jaws the other
+    /// way). Near fit_mm, the depth cannot tell the two apart and the rotation is a guess; on
+    /// renders, poses of objects without symmetries with alt_fit_mm < 1.2 fit_mm were right
+    /// (ADD) in about one case in five (docs/results.md). -1 when there was none.
+    double alt_fit_mm = -1;
     bool refined = false;  ///< the pose was refined (refine set and the object's mesh found)
     /// PoseTracker: the pose followed the previous frame's (false: a fresh detection's).
     bool tracked = false;

@@ -740,7 +740,8 @@ std::vector<std::vector<int64_t>> cluster_sets(const Points& obs_all, const Mode
     return out;
 }
 
-// Every tree point's row in model_points strided rows (what the penalties project).
+// At most model_points of the tree's points, evenly strided: the model points the penalties
+// project.
 Points strided_model_points(const ModelKdTree& tree, int model_points) {
     const Points& tp = tree.points();
     const int64_t nm = std::min<int64_t>(tp.rows(), std::max(1, model_points));

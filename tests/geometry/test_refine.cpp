@@ -349,7 +349,7 @@ TEST_CASE("refine_pose: a pose sunk into the support plane pays for it, without 
     CHECK_THROWS_WITH(refine_pose(tree, info, obs, gt, opt, &di), Contains("plane_tol_mm 0"));
 }
 
-TEST_CASE("pose_cost: refine_pose's cost of a pose as it is; the sunk pose costs more; bad input",
+TEST_CASE("pose_cost: refine_pose's cost of a pose as it is, the sunk pose costs more, bad input",
           "[geometry][refine]") {
     const BoxOnTable b;
     RefineOptions opt;

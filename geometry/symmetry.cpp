@@ -99,22 +99,41 @@ ModelFrame model_frame(const Points& pts, double min_gain) {
     return f;
 }
 
+namespace {
+
+// symmetry_score's sums over every stride-th tree point, stopping once the error sum exceeds
+// stop_above (the sums only grow: what is left cannot bring the mean back under a bound).
+// Returns false when it stopped early.
+bool score_sums(const ModelKdTree& tree, const SymmetryTransform& s, int64_t stride,
+                double stop_above, double* err, double* moved) {
+    const Points& pts = tree.points();
+    *err = 0, *moved = 0;
+    for (int64_t i = 0; i < pts.rows(); i += stride) {
+        if (*err > stop_above) return false;
+        const Eigen::Vector3f p = pts.row(i).transpose();
+        const Eigen::Vector3f q = s.R * p + s.t;
+        *err += tree.nearest(q);
+        *moved += (q - p).norm();
+    }
+    return *err <= stop_above;
+}
+
+// The stride of symmetry_score's points: every stride-th tree point, at most max_points.
+int64_t score_stride(int64_t n, int max_points) {
+    return std::max<int64_t>(1, (n + max_points - 1) / max_points);
+}
+
+}  // namespace
+
 SymmetryScore symmetry_score(const ModelKdTree& tree, const SymmetryTransform& s,
                              int max_points) {
     G2L_CHECK(max_points > 0, "symmetry_score: max_points must be > 0, got ", max_points);
-    const Points& pts = tree.points();
-    const int64_t n = pts.rows();
-    const int64_t stride = std::max<int64_t>(1, (n + max_points - 1) / max_points);
+    const int64_t n = tree.points().rows();
+    const int64_t stride = score_stride(n, max_points);
+    const double count = double((n + stride - 1) / stride);
     double err = 0, moved = 0;
-    int64_t count = 0;
-    for (int64_t i = 0; i < n; i += stride) {
-        const Eigen::Vector3f p = pts.row(i).transpose();
-        const Eigen::Vector3f q = s.R * p + s.t;
-        err += tree.nearest(q);
-        moved += (q - p).norm();
-        ++count;
-    }
-    return {err / double(count), moved / double(count)};
+    score_sums(tree, s, stride, std::numeric_limits<double>::infinity(), &err, &moved);
+    return {err / count, moved / count};
 }
 
 std::vector<SymmetryTransform> geometric_symmetries(const ModelKdTree& tree, const ModelInfo& info,
@@ -152,40 +171,29 @@ std::vector<SymmetryTransform> geometric_symmetries(const ModelKdTree& tree, con
     if (!frame.aligned)
         for (auto& R : candidates) R = F * R * F.transpose();
     const double tol = opt.tolerance_frac * info.diameter;
-    // Each candidate on its own (in parallel; the list keeps the candidates' order). The mean
-    // error only grows towards its final value from below, so a candidate whose error sum
-    // already exceeds tol times the point count is rejected there (most are, after a small
-    // part of the points): the same verdicts as scoring every point, several times faster.
-    const Points& pts = tree.points();
-    const int64_t n = pts.rows();
-    const int64_t stride = std::max<int64_t>(1, (n + opt.max_points - 1) / opt.max_points);
-    const int64_t count = (n + stride - 1) / stride;
-    const double reject_above = tol * double(count);
-    std::vector<char> keep(candidates.size(), 0);
+    // Each candidate on its own (in parallel; the list keeps the candidates' order), scored as
+    // symmetry_score scores it, but rejected as soon as its error sum exceeds tol times the
+    // point count (most are, after a small part of the points): the same verdicts, several
+    // times faster.
+    std::vector<SymmetryTransform> turns(candidates.size());
+    for (size_t i = 0; i < candidates.size(); ++i) {
+        turns[i].R = candidates[i];
+        turns[i].t = c - candidates[i] * c;  // rotate about the box centre
+    }
+    const int64_t n = tree.points().rows();
+    const int64_t stride = score_stride(n, opt.max_points);
+    const double count = double((n + stride - 1) / stride);
+    std::vector<char> keep(turns.size(), 0);
 #pragma omp parallel for schedule(dynamic, 1)
-    for (int64_t i = 1; i < int64_t(candidates.size()); ++i) {
-        SymmetryTransform s;
-        s.R = candidates[size_t(i)];
-        s.t = c - s.R * c;  // rotate about the box centre
+    for (int64_t i = 1; i < int64_t(turns.size()); ++i) {
         double err = 0, moved = 0;
-        for (int64_t k = 0; k < n && err <= reject_above; k += stride) {
-            const Eigen::Vector3f p = pts.row(k).transpose();
-            const Eigen::Vector3f q = s.R * p + s.t;
-            err += tree.nearest(q);
-            moved += (q - p).norm();
-        }
-        if (err > reject_above) continue;
-        const double e = err / double(count), d = moved / double(count);
+        if (!score_sums(tree, turns[size_t(i)], stride, tol * count, &err, &moved)) continue;
+        const double e = err / count, d = moved / count;
         keep[size_t(i)] = e <= opt.displacement_frac * d || e <= opt.noise_frac * info.diameter;
     }
     std::vector<SymmetryTransform> out(1);  // identity
-    for (size_t i = 1; i < candidates.size(); ++i)
-        if (keep[i]) {
-            SymmetryTransform s;
-            s.R = candidates[i];
-            s.t = c - s.R * c;
-            out.push_back(s);
-        }
+    for (size_t i = 1; i < turns.size(); ++i)
+        if (keep[i]) out.push_back(turns[i]);
     return out;
 }
 

@@ -68,6 +68,11 @@ json instance_json(const g2l::eval::InstanceResult& r, const std::string& set_na
     }
     if (r.seg_iou >= 0) j["seg_iou"] = r.seg_iou;
     if (r.det_iou >= 0) j["det_iou"] = r.det_iou;
+    if (r.det_iou_detector >= 0) j["det_iou_detector"] = r.det_iou_detector;
+    if (!r.detector_box.empty()) {
+        const g2l::geom::Box2i& b = r.detector_box;
+        j["detector_box"] = {b.x, b.y, b.w, b.h};
+    }
     return j;
 }
 
@@ -263,8 +268,9 @@ void add_options(CLI::App& app, Job& j) {
         ->check(CLI::Range(0.0, 1.0));
     app.add_option("--fit-score", j.fit_score,
                    "--boxes det / file: fit the score model (the probability that a verified "
-                   "pose is right, ADD-S < 0.1 d) to this run's hypotheses and write its weights "
-                   "as JSON here (fit on renders only; the shipped weights are infer/"
+                   "pose is right, ADD-S < 0.1 d) and the arbiter (which of two poses claiming "
+                   "the same depth is the right one) to this run's hypotheses and write their "
+                   "weights as JSON here (fit on renders only; the shipped weights are infer/"
                    "frame_pipeline.h's defaults, docs/results.md)");
     app.add_option("--pr-curve", j.pr_png,
                    "--boxes det / file: write the precision-recall curve of the reported poses "
@@ -448,21 +454,29 @@ g2l::eval::EvalOptions eval_options(const Job& j, const EvalSet& s) {
     return eo;
 }
 
-/// --fit-score: the score model fitted on the set's hypotheses.
+/// --fit-score: the score model and the arbiter fitted on the set's hypotheses.
 void write_score_fit(const Job& j, const std::vector<g2l::eval::HypothesisRecord>& hyps,
                      const std::string& name) {
     if (!j.fit_score.empty()) {
         const g2l::infer::ScoreModel sm = g2l::eval::fit_score_model(hyps);
+        const g2l::infer::ArbiterModel am = g2l::eval::fit_arbiter(hyps);
         std::ofstream f(j.fit_score);
         f << json{{"features", {"bias", "explained", "violation", "occlusion", "seg_agree",
                                 "support_x_seg_agree", "ln_det_score", "borrowed"}},
-                  {"w", sm.w}}
+                  {"w", sm.w}, {"arbiter_w", am.w}}
                  .dump(2)
           << "\n";
         G2L_CHECK(f.good(), "--fit-score '", j.fit_score, "': cannot write the file");
-        std::printf("score model fitted on %s: w = {", name.c_str());
-        for (size_t k = 0; k < sm.w.size(); ++k) std::printf("%s%.4f", k ? ", " : "", sm.w[k]);
-        std::printf("} (%s)\n\n", j.fit_score.c_str());
+        auto print = [](const char* what, const auto& w) {
+            std::printf("%s = {", what);
+            for (size_t k = 0; k < w.size(); ++k) std::printf("%s%.4f", k ? ", " : "", w[k]);
+            std::printf("}");
+        };
+        std::printf("fitted on %s: ", name.c_str());
+        print("score model w", sm.w);
+        std::printf(", ");
+        print("arbiter w", am.w);
+        std::printf(" (%s)\n\n", j.fit_score.c_str());
     }
 }
 

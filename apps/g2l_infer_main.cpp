@@ -310,7 +310,8 @@ json frame_json(const Job& j, const LoadedFrame& f, const std::vector<g2l::Objec
                                   {"total", p.timings.total_ms}}}};
         if (p.verified)
             o["check"] = {{"explained", p.check.explained}, {"violation", p.check.violation},
-                          {"occlusion", p.check.occlusion}, {"seg_agree", p.check.seg_agree}};
+                          {"occlusion", p.check.occlusion}, {"seg_agree", p.check.seg_agree},
+                          {"bbox", p.check.bbox}};
         if (p.rival >= 0) o["rival"] = p.rival;
         if (j.track) o["track_id"] = p.track_id, o["tracked"] = p.tracked;
         // Always say whether the pose went through the refinement, and why not when it was

@@ -71,6 +71,7 @@ struct Acc {
     double seg_iou = 0;
     int seg_n = 0;
     int det_n = 0, det_hits = 0;  // instances with a det_iou, of those IoU >= 0.5
+    int det_raw_hits = 0;         // of those, the detection's own box at IoU >= 0.5
     int reported = 0, reported_right = 0, box_hits = 0, false_pos = 0;  // the hypotheses road
 };
 
@@ -340,7 +341,7 @@ Evaluation::Matching Evaluation::match(const std::vector<const data::Instance*>&
     // its object, one box each, by score.
     std::vector<uint8_t> box_taken(ng, 0);
     for (size_t hi = 0; hi < nh && hyps_[hi].accepted(); ++hi) {
-        const geom::Box2i& b = hyps_[hi].outcome.box;
+        const geom::Box2i b = hyps_[hi].reported_box();
         int best = -1;
         double best_iou = 0.5;
         for (size_t g = 0; g < ng; ++g) {
@@ -398,7 +399,7 @@ void Evaluation::record_hypotheses(const data::Frame& f,
         r.inst_index = -1;
         r.status = "false positive";
         set_reported(hy, &r);
-        r.box = hy.outcome.box;
+        r.box = hy.reported_box();
         r.false_positive = true;
         r.box_hit = m.box_hit[hi] == 1;
         results_.push_back(r);
@@ -447,7 +448,7 @@ void Evaluation::matched_frame(const data::Frame& f) {
         r.image_id = f.image_id;
         r.inst_index = int(&inst - f.instances.data());
         r.gt = inst.pose;
-        r.det_iou = 0;
+        r.det_iou = r.det_iou_detector = 0;
         r.box = geom::clip_box(inst.box(), K.width, K.height);
         if (m.est_of[g] < 0) {
             r.status = opt_.poses ? "no estimate" : cands.empty() ? "no detection" : "no pose";
@@ -457,9 +458,12 @@ void Evaluation::matched_frame(const data::Frame& f) {
         const infer::Hypothesis& hy = hyps_[size_t(m.est_of[g])];
         const infer::PoseOutcome& o = hy.outcome;
         r.status = infer::to_string(o.status);
-        r.box = o.box;
+        r.box = hy.reported_box();
         const geom::Box2i gb = inst.box();
-        r.det_iou = geom::box_iou(o.box.x, o.box.y, o.box.w, o.box.h, gb.x, gb.y, gb.w, gb.h);
+        r.det_iou = geom::box_iou(r.box.x, r.box.y, r.box.w, r.box.h, gb.x, gb.y, gb.w, gb.h);
+        r.detector_box = o.box;
+        r.det_iou_detector =
+            geom::box_iou(o.box.x, o.box.y, o.box.w, o.box.h, gb.x, gb.y, gb.w, gb.h);
         set_reported(hy, &r);
         r.ms = o.ms_crop + o.ms_seg + o.ms_t + o.ms_rot + o.ms_refine;
         r.refine_hyp = o.refine_hypothesis;
@@ -619,6 +623,7 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
         if (r.det_iou >= 0) {
             a.det_n++;
             a.det_hits += !r.det_miss();
+            a.det_raw_hits += r.det_iou_detector >= 0.5;
         }
         // No pose, or (a detection file or detector without the hypotheses road) a pose from
         // no true detection. A reported pose is judged by its pose: a loose box around a right
@@ -676,6 +681,7 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
         s.num_symmetries = meta.at(id).num_symmetries;
         s.seg_iou = a.seg_n ? a.seg_iou / a.seg_n : -1;
         s.det_recall_50 = a.det_n ? 100.0 * a.det_hits / a.det_n : -1;
+        s.detector_recall_50 = a.det_n ? 100.0 * a.det_raw_hits / a.det_n : -1;
         s.reported = a.reported;
         s.false_positives = a.false_pos;
         if (any_reported) {
@@ -687,7 +693,7 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
         all.add_m.insert(all.add_m.end(), a.add_m.begin(), a.add_m.end());
         all.count += a.count; all.misses += a.misses; all.found += a.found;
         all.rot += a.rot; all.trans += a.trans;
-        all.det_n += a.det_n; all.det_hits += a.det_hits;
+        all.det_n += a.det_n; all.det_hits += a.det_hits; all.det_raw_hits += a.det_raw_hits;
         all.reported += a.reported; all.reported_right += a.reported_right;
         all.box_hits += a.box_hits; all.false_pos += a.false_pos;
     }
@@ -712,6 +718,7 @@ EvalReport aggregate(const std::vector<InstanceResult>& results,
     }
     avg.seg_iou = seg_objects ? seg_sum / seg_objects : -1;
     avg.det_recall_50 = all.det_n ? 100.0 * all.det_hits / all.det_n : -1;
+    avg.detector_recall_50 = all.det_n ? 100.0 * all.det_raw_hits / all.det_n : -1;
     avg.reported = all.reported;
     avg.false_positives = all.false_pos;
     if (any_reported) {  // pooled over every reported pose
@@ -774,14 +781,16 @@ std::string report_markdown(const EvalReport& r) {
          "distance in the AUCs and at 180 deg in the median rotation error; the columns marked "
          "\"found\" are over the poses found.\n";
     if (r.average.det_recall_50 >= 0) {  // detector boxes: what the detector found
-        s += "\nDetection recall (the box of the pose matched to the instance at IoU >= 0.5 "
+        s += "\nDetection recall (the box the pose matched to the instance is reported with — "
+             "the box of its surface the depth explains, else the detector's — at IoU >= 0.5 "
              "with the visible GT box; the pose itself is judged above by its error):";
         for (const auto& o : r.objects) {
             std::snprintf(line, sizeof line, " %d: %.1f%%", o.obj_id, o.det_recall_50);
             s += line;
         }
-        std::snprintf(line, sizeof line, "; all %d instances: **%.1f%%**\n", r.average.count,
-                      r.average.det_recall_50);
+        std::snprintf(line, sizeof line,
+                      "; all %d instances: **%.1f%%** (the detector's own boxes: %.1f%%)\n",
+                      r.average.count, r.average.det_recall_50, r.average.detector_recall_50);
         s += line;
     }
     if (r.average.pose_precision >= 0) {  // the hypotheses road: what was reported
@@ -823,6 +832,9 @@ std::string report_json(const EvalReport& r) {
                               {"det_recall_50", o.det_recall_50 >= 0
                                                     ? nlohmann::json(o.det_recall_50)
                                                     : nlohmann::json(nullptr)},
+                              {"detector_recall_50", o.detector_recall_50 >= 0
+                                                         ? nlohmann::json(o.detector_recall_50)
+                                                         : nlohmann::json(nullptr)},
                               {"pose_precision", o.pose_precision >= 0
                                                      ? nlohmann::json(o.pose_precision)
                                                      : nlohmann::json(nullptr)},
@@ -897,6 +909,52 @@ infer::ScoreModel fit_score_model(const std::vector<HypothesisRecord>& hyps, dou
     }
     infer::ScoreModel m;
     for (int k = 0; k < F; ++k) m.w[size_t(k)] = w[k];
+    return m;
+}
+
+infer::ArbiterModel fit_arbiter(const std::vector<HypothesisRecord>& hyps, double l2) {
+    constexpr int F = infer::ScoreModel::kFeatures;
+    std::vector<Eigen::Matrix<double, F, 1>> dx;  // loser - winner
+    std::vector<double> y;                        // 1: the loser was the right one
+    for (size_t b = 0; b < hyps.size();) {  // one frame's records: [b, e)
+        size_t e = b + 1;
+        while (e < hyps.size() && hyps[e].scene == hyps[b].scene &&
+               hyps[e].image_id == hyps[b].image_id)
+            ++e;
+        for (size_t i = b; i < e; ++i) {
+            const HypothesisRecord& h = hyps[i];
+            if (h.verdict != "duplicate" && h.verdict != "overlap") continue;
+            G2L_CHECK(h.rival >= 0 && size_t(h.rival) < e - b, "fit_arbiter: hypothesis ", i - b,
+                      " of scene ", h.scene, " image ", h.image_id, " names rival ", h.rival,
+                      ", outside its frame's ", e - b, " hypotheses");
+            const HypothesisRecord& w = hyps[b + size_t(h.rival)];
+            if (!h.verified || !w.verified || h.pose_right == w.pose_right) continue;
+            Eigen::Matrix<double, F, 1> d;
+            for (int k = 0; k < F; ++k) d[k] = h.features[size_t(k)] - w.features[size_t(k)];
+            dx.push_back(d);
+            y.push_back(h.pose_right ? 1.0 : 0.0);
+        }
+        b = e;
+    }
+    const int n = int(dx.size());
+    G2L_CHECK(n >= 10, "fit_arbiter: need at least 10 duplicates or overlaps where exactly one "
+              "of the two poses is right, got ", n);
+    Eigen::Matrix<double, F, 1> w = Eigen::Matrix<double, F, 1>::Zero();
+    for (int it = 0; it < 100; ++it) {
+        Eigen::Matrix<double, F, 1> grad = l2 * n * w;
+        Eigen::Matrix<double, F, F> hess = Eigen::Matrix<double, F, F>::Identity() * (l2 * n);
+        for (int i = 0; i < n; ++i) {
+            const double p = 1.0 / (1.0 + std::exp(-std::clamp(w.dot(dx[size_t(i)]), -40.0, 40.0)));
+            grad += (p - y[size_t(i)]) * dx[size_t(i)];
+            hess += std::max(p * (1 - p), 1e-9) * dx[size_t(i)] * dx[size_t(i)].transpose();
+        }
+        const Eigen::Matrix<double, F, 1> step = hess.ldlt().solve(grad);
+        w -= step;
+        if (step.cwiseAbs().maxCoeff() < 1e-8) break;
+    }
+    infer::ArbiterModel m;
+    for (int k = 0; k < F; ++k) m.w[size_t(k)] = w[k];
+    m.w[0] = 0;  // the bias's difference is 0: its weight is never fitted
     return m;
 }
 

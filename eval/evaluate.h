@@ -81,6 +81,8 @@ struct ObjectScores {
     /// the ground-truth visible box with IoU >= 0.5 (the average pools every instance);
     /// -1 with ground-truth boxes. An instance without such a detection counts as a miss.
     double det_recall_50 = -1;
+    /// The same with the detections' own boxes (not the boxes the verified poses explain).
+    double detector_recall_50 = -1;
     /// With detections: % of the reported (accepted) poses that are right (ADD-S < 0.1 d of the
     /// instance they are matched to); false positives count as wrong. -1 with GT boxes.
     double pose_precision = -1;
@@ -110,10 +112,14 @@ struct InstanceResult {
     /// IoU of the object points taken (seg net or oracle) with the GT object points among the
     /// crop points the seg net sees; -1 when there was no crop or neither set has a point.
     double seg_iou = -1;
-    /// With detections: IoU of the box of the matched pose with the ground-truth visible box
-    /// (0 without one); -1 with ground-truth boxes. Below 0.5 the instance is a detection miss
-    /// (det_recall_50); its reported pose is still judged by its error.
+    /// With detections: IoU of the box the matched pose is reported with (infer::Hypothesis::
+    /// reported_box: the box of its surface the depth explains, else the detection's) with the
+    /// ground-truth visible box (0 without one); -1 with ground-truth boxes. Below 0.5 the
+    /// instance is a detection miss (det_recall_50); its reported pose is still judged by its
+    /// error.
     double det_iou = -1;
+    /// The same for the detection's own box (detector_recall_50).
+    double det_iou_detector = -1;
     bool det_miss() const { return det_iou >= 0 && det_iou < 0.5; }
     // Where it came from and what was estimated (evaluate_gt_boxes fills these; aggregate
     // does not read them).
@@ -122,7 +128,8 @@ struct InstanceResult {
     int inst_index = 0;            ///< index of the instance in the frame's scene_gt list
     std::string status;            ///< "ok", "no detection", "no depth", "too few ... points"
     double score = 1;              ///< box score (1 for GT boxes)
-    geom::Box2i box;               ///< the box used (clipped to the image)
+    geom::Box2i box;               ///< the box used (clipped to the image) or reported
+    geom::Box2i detector_box;      ///< with detections: the detection's own box (clipped)
     geom::Pose est, gt;            ///< estimate (when found) and ground truth
     double ms = 0;                 ///< crop + networks (+ refinement), this instance
     int refine_cluster = -1;       ///< refinement: -1 all object points, else the cluster that won
@@ -168,6 +175,14 @@ struct HypothesisRecord {
 /// weights but the bias) to the verified hypotheses' features and pose_right labels. Throws
 /// g2l::Error with fewer than 20 verified hypotheses or only one label among them.
 infer::ScoreModel fit_score_model(const std::vector<HypothesisRecord>& hyps, double l2 = 1e-2);
+
+/// Fits the arbiter (infer::ArbiterModel: logistic regression without a bias on feature
+/// differences, Newton's method, L2 penalty `l2`) to the conflicts among the hypotheses: each
+/// duplicate or overlap and the pose that beat it (its `rival`, an index within its frame's
+/// records, which lie together as g2l_eval records them), both verified, exactly one of the two
+/// right (pose_right). Throws g2l::Error with fewer than 10 such pairs or with a rival index
+/// outside its frame.
+infer::ArbiterModel fit_arbiter(const std::vector<HypothesisRecord>& hyps, double l2 = 1e-2);
 
 /// What aggregation needs to know of an object.
 struct ObjectMeta {

@@ -79,6 +79,7 @@ Verification verify_pose(const ModelKdTree& tree, const ModelInfo& info, const P
         if (p.u >= 0) zbuf[cell_of(p)] = std::min(zbuf[cell_of(p)], p.z);
 
     // 2. Each visible point against the depth at its pixel.
+    int bu0 = K.width, bu1 = -1, bv0 = K.height, bv1 = -1;  // the inliers' pixels
     const int fc = opt.footprint_cell_px;
     const int fw = (K.width + fc - 1) / fc;
     for (const Proj& p : proj) {
@@ -112,8 +113,11 @@ Verification verify_pose(const ModelKdTree& tree, const ModelInfo& info, const P
         } else {
             ++v.inliers;
             v.footprint.push_back(int32_t((p.v / fc) * fw + p.u / fc));
+            bu0 = std::min(bu0, p.u), bu1 = std::max(bu1, p.u);
+            bv0 = std::min(bv0, p.v), bv1 = std::max(bv1, p.v);
         }
     }
+    if (v.inliers >= opt.min_visible) v.box = {bu0, bv0, bu1 - bu0 + 1, bv1 - bv0 + 1};
     std::sort(v.footprint.begin(), v.footprint.end());
     v.footprint.erase(std::unique(v.footprint.begin(), v.footprint.end()), v.footprint.end());
 

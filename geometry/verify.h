@@ -60,6 +60,10 @@ struct Verification {
     /// The image cells (footprint_cell_px squares, row-major over the image) holding the
     /// inlier points, sorted: the depth this pose claims. Two objects cannot claim the same.
     std::vector<int32_t> footprint;
+    /// The bounding box of the inlier points' pixels: the part of the image the depth confirms
+    /// the posed model covers (what a detector's box should have been). Empty with fewer than
+    /// VerifyOptions::min_visible inliers.
+    Box2i box;
 };
 
 /// Verifies `pose` of the model `tree` (its surface points, model frame) with box and diameter

@@ -305,6 +305,13 @@ double ScoreModel::probability(const geom::Verification& v, double det_score,
     return 1.0 / (1.0 + std::exp(-std::clamp(z, -40.0, 40.0)));
 }
 
+double ArbiterModel::prefer(const std::array<double, ScoreModel::kFeatures>& a,
+                            const std::array<double, ScoreModel::kFeatures>& b) const {
+    double z = 0;
+    for (int k = 0; k < ScoreModel::kFeatures; ++k) z += w[size_t(k)] * (a[size_t(k)] - b[size_t(k)]);
+    return 1.0 / (1.0 + std::exp(-std::clamp(z, -40.0, 40.0)));
+}
+
 const char* to_string(Verdict v) {
     switch (v) {
         case Verdict::accepted: return "accepted";
@@ -427,6 +434,105 @@ geom::Verification FramePipeline::verify(const float* depth, const geom::Intrins
                              m->grid.empty() ? nullptr : &m->grid);
 }
 
+std::vector<Hypothesis> select_hypotheses(std::vector<Hypothesis> hs,
+                                          const HypothesisTuning& tune,
+                                          const std::map<int, double>& diameter,
+                                          const geom::Intrinsics& K, double min_pose_score) {
+    // 3. Greedy selection, best score first: a hypothesis is kept unless a kept one is the same
+    //    instance (same object, centres closer than duplicate_frac x diameter) or claims the
+    //    same depth (footprints overlapping by more than overlap_frac) — and the arbiter does
+    //    not prefer it to every kept one it conflicts with; those it beats are dropped then.
+    for (const Hypothesis& h : hs)
+        G2L_CHECK(!h.outcome.ok() || diameter.count(h.cand.obj_id), "select_hypotheses: object ",
+                  h.cand.obj_id, " is posed but has no diameter");
+    std::vector<size_t> order(hs.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+        const bool oa = hs[a].outcome.ok() && hs[a].verdict != Verdict::covered;
+        const bool ob = hs[b].outcome.ok() && hs[b].verdict != Verdict::covered;
+        if (oa != ob) return oa;
+        if (hs[a].fill_in != hs[b].fill_in) return hs[b].fill_in;
+        return hs[a].score > hs[b].score;
+    });
+    std::vector<size_t> kept;
+    auto features = [](const Hypothesis& x) {
+        return ScoreModel::features(x.check, x.cand.det_score, x.cand.det_obj_id != x.cand.obj_id);
+    };
+    // Keeps hypothesis i unless a kept pose is the same instance or claims the same depth and
+    // the arbiter does not prefer i to it; the kept poses i beats are dropped. Whether kept.
+    auto keep = [&](size_t i) {
+        Hypothesis& h = hs[i];
+        // What a kept pose w is to h: the same instance, the same depth, or neither.
+        auto conflict = [&](const Hypothesis& w) {
+            if (w.cand.obj_id == h.cand.obj_id &&
+                (w.outcome.pose.t - h.outcome.pose.t).norm() <
+                    tune.duplicate_frac * diameter.at(h.cand.obj_id))
+                return Verdict::duplicate;
+            if (h.verified && w.verified &&
+                geom::footprint_overlap(w.check.footprint, h.check.footprint) > tune.overlap_frac)
+                return Verdict::overlap;
+            return Verdict::accepted;
+        };
+        std::vector<std::pair<size_t, Verdict>> beaten;  // kept poses h replaces
+        for (const size_t k : kept) {
+            const Hypothesis& w = hs[k];
+            const Verdict c = conflict(w);
+            if (c == Verdict::accepted) continue;
+            if (tune.arbitrate && h.verified && w.verified && !h.fill_in && !w.fill_in &&
+                tune.arbiter.prefer(features(h), features(w)) > 0.5) {
+                beaten.emplace_back(k, c);
+                continue;
+            }
+            h.verdict = c;
+            h.rival = int(k);
+            return false;
+        }
+        h.verdict = Verdict::accepted;
+        h.rival = -1;
+        for (const auto& [k, c] : beaten) {
+            hs[k].verdict = c;
+            hs[k].rival = int(i);
+            kept.erase(std::find(kept.begin(), kept.end(), k));
+        }
+        kept.push_back(i);
+        return true;
+    };
+    for (const size_t i : order) {
+        Hypothesis& h = hs[i];
+        if (h.verdict == Verdict::covered) continue;
+        if (!h.outcome.ok()) {
+            h.verdict = Verdict::no_pose;
+            continue;
+        }
+        if (!implausible_distance(h.outcome.pose, h.outcome.box, K,
+                                  diameter.at(h.cand.obj_id)).empty()) {
+            h.verdict = Verdict::implausible;
+            continue;
+        }
+        if (h.score < min_pose_score) {
+            h.verdict = Verdict::low_score;
+            continue;
+        }
+        keep(i);
+    }
+    // 4. Accepted first, then the rejected, each by score; rivals renumbered.
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+        const bool ka = hs[a].accepted(), kb = hs[b].accepted();
+        if (ka != kb) return ka;
+        if (ka && hs[a].fill_in != hs[b].fill_in) return hs[a].score > hs[b].score;
+        return false;  // keep the score order of step 3
+    });
+    std::vector<int> new_index(hs.size());
+    for (size_t j = 0; j < order.size(); ++j) new_index[order[j]] = int(j);
+    std::vector<Hypothesis> out;
+    out.reserve(hs.size());
+    for (const size_t i : order) {
+        out.push_back(std::move(hs[i]));
+        if (out.back().rival >= 0) out.back().rival = new_index[size_t(out.back().rival)];
+    }
+    return out;
+}
+
 void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
                                const std::vector<Candidate>& cands, std::vector<Hypothesis>* out,
                                const std::vector<Hypothesis>* seeds) {
@@ -500,70 +606,8 @@ void FramePipeline::hypotheses(const float* depth, const geom::Intrinsics& K,
                                                   h.cand.det_obj_id != h.cand.obj_id);
         }
     }
-    // 3. Greedy selection, best score first: a hypothesis is kept unless a kept one is the same
-    //    instance (same object, centres closer than duplicate_frac x diameter) or claims the
-    //    same depth (footprints overlapping by more than overlap_frac).
-    std::vector<size_t> order(hs.size());
-    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
-        const bool oa = hs[a].outcome.ok() && hs[a].verdict != Verdict::covered;
-        const bool ob = hs[b].outcome.ok() && hs[b].verdict != Verdict::covered;
-        if (oa != ob) return oa;
-        if (hs[a].fill_in != hs[b].fill_in) return hs[b].fill_in;
-        return hs[a].score > hs[b].score;
-    });
-    std::vector<size_t> kept;
-    for (const size_t i : order) {
-        Hypothesis& h = hs[i];
-        if (h.verdict == Verdict::covered) continue;
-        if (!h.outcome.ok()) {
-            h.verdict = Verdict::no_pose;
-            continue;
-        }
-        if (!implausible_distance(h.outcome.pose, h.outcome.box, K,
-                                  model_.diameter.at(h.cand.obj_id)).empty()) {
-            h.verdict = Verdict::implausible;
-            continue;
-        }
-        if (h.score < opt.min_pose_score) {
-            h.verdict = Verdict::low_score;
-            continue;
-        }
-        h.verdict = Verdict::accepted;
-        for (const size_t k : kept) {
-            const Hypothesis& w = hs[k];
-            if (w.cand.obj_id == h.cand.obj_id) {
-                const double d = model_.diameter.at(h.cand.obj_id);
-                if ((w.outcome.pose.t - h.outcome.pose.t).norm() < tune.duplicate_frac * d) {
-                    h.verdict = Verdict::duplicate;
-                    h.rival = int(k);
-                    break;
-                }
-            }
-            if (h.verified && w.verified &&
-                geom::footprint_overlap(w.check.footprint, h.check.footprint) > tune.overlap_frac) {
-                h.verdict = Verdict::overlap;
-                h.rival = int(k);
-                break;
-            }
-        }
-        if (h.accepted()) kept.push_back(i);
-    }
-    // 4. Accepted first, then the rejected, each by score; rivals renumbered.
-    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
-        const bool ka = hs[a].accepted(), kb = hs[b].accepted();
-        if (ka != kb) return ka;
-        if (ka && hs[a].fill_in != hs[b].fill_in) return hs[a].score > hs[b].score;
-        return false;  // keep the score order of step 3
-    });
-    std::vector<int> new_index(hs.size());
-    for (size_t j = 0; j < order.size(); ++j) new_index[order[j]] = int(j);
-    out->clear();
-    out->reserve(hs.size());
-    for (const size_t i : order) {
-        out->push_back(std::move(hs[i]));
-        if (out->back().rival >= 0) out->back().rival = new_index[size_t(out->back().rival)];
-    }
+    // 3-4. Which are kept, in the order the caller sees them.
+    *out = select_hypotheses(std::move(hs), tune, model_.diameter, K, opt.min_pose_score);
 }
 
 namespace {

@@ -143,6 +143,24 @@ struct ScoreModel {
     double probability(const geom::Verification& v, double det_score, bool borrowed) const;
 };
 
+/// Which of two poses that claim the same depth (an overlap, or a duplicate of one object) is
+/// the right one, when one of them is: P(a right | exactly one of a, b right) =
+/// sigmoid(w . (features(a) - features(b))), the score model's features (ScoreModel::features;
+/// the bias cancels, w[0] = 0). The score model answers "is this pose right?" over every
+/// hypothesis, most of them phantoms a weak peak makes, so the detector's heat weighs most
+/// there; between two poses of the same depth the depth's own evidence (the explained share,
+/// the violations, the segmentation's agreement) weighs more. Fitted on renders only, on the
+/// overlaps and duplicates where exactly one pose was right (`g2l_eval --fit-score`,
+/// docs/results.md).
+struct ArbiterModel {
+    /// Fitted 2026-12-07 on the conflicts of 60 renders (configs/scenes/
+    /// ycbv_table_blocks.json, seed 31; the shipped detector and pose model).
+    std::array<double, ScoreModel::kFeatures> w{{0, 0.8527, -0.8595, 0.0068, 1.1229, 2.2347, 1.6703, -0.1691}};
+    /// P(a right | exactly one right) for two verified poses' features.
+    double prefer(const std::array<double, ScoreModel::kFeatures>& a,
+                  const std::array<double, ScoreModel::kFeatures>& b) const;
+};
+
 /// The fixed settings of the hypotheses road (spec §16; what a user may change is in
 /// g2l::PipelineOptions): every candidate is posed by the networks and refined, verified
 /// against the depth (geometry/verify.h), and the best explained kept, suppressing duplicates
@@ -160,6 +178,11 @@ struct HypothesisTuning {
     double overlap_frac = 0.3;
     geom::VerifyOptions verify;
     ScoreModel score_model;
+    /// A later (lower-scored) pose that conflicts with kept ones replaces them when the arbiter
+    /// prefers it to each of them (both verified, neither a fill-in); false: the higher score
+    /// always wins.
+    bool arbitrate = true;
+    ArbiterModel arbiter;
 };
 
 /// What became of a hypothesis.
@@ -202,7 +225,26 @@ struct Hypothesis {
     /// detector saw: it only fills in an instance the fresh poses left out) and never covering.
     bool fill_in = false;
     bool accepted() const { return verdict == Verdict::accepted; }
+    /// The box the pose is reported with: the box of its surface the depth explains
+    /// (geom::Verification::box) when verified with enough inliers, else the detection's box.
+    geom::Box2i reported_box() const {
+        return verified && !check.box.empty() ? check.box : outcome.box;
+    }
 };
+
+/// FramePipeline::hypotheses' selection, on posed (and verified) hypotheses: best score first
+/// (fill-ins last), each kept unless its pose is missing (no_pose), its distance disagrees with
+/// its box (implausible_distance: implausible), its score is below `min_pose_score`
+/// (low_score), or a kept pose is the same instance (same object, centres closer than
+/// tune.duplicate_frac x its `diameter`: duplicate) or claims the same depth (footprints
+/// overlapping by more than tune.overlap_frac: overlap) and the arbiter (tune.arbiter, with
+/// tune.arbitrate) does not prefer it to each such kept pose; the kept poses it is preferred to
+/// are dropped then, naming it as their rival. Covered hypotheses keep their verdict. Returns
+/// them accepted first, then the rejected, each by score; rivals index the returned order.
+std::vector<Hypothesis> select_hypotheses(std::vector<Hypothesis> hs,
+                                          const HypothesisTuning& tune,
+                                          const std::map<int, double>& diameter,
+                                          const geom::Intrinsics& K, double min_pose_score);
 
 /// How a pose of the previous frame is followed into the next one (tracking, spec §17): at
 /// video rate an object moves a few millimetres or degrees between frames, so a short ICP from

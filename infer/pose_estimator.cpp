@@ -234,6 +234,7 @@ void set_check(const geom::Verification& v, double score, ObjectPose* p) {
     p->check.violation = v.violation;
     p->check.occlusion = v.occlusion;
     p->check.seg_agree = v.seg_agree;
+    if (!v.box.empty()) p->check.bbox = {{v.box.x, v.box.y, v.box.w, v.box.h}};
 }
 
 }  // namespace

@@ -85,6 +85,15 @@ TEST_CASE("verify_pose: right, in front, behind, beside, occluded, no depth", "[
     CHECK(right.score > 0.9);
     CHECK(!right.footprint.empty());
     CHECK(std::is_sorted(right.footprint.begin(), right.footprint.end()));
+    // The box of the explained surface: the front face's projection (120 x 80 mm at 770 mm:
+    // x 113.2-206.8, y 88.8-151.2 px), to the model points' spacing.
+    INFO("right box " << right.box.x << " " << right.box.y << " " << right.box.w << " "
+                      << right.box.h);
+    const double fz = kZ - kSz / 2;
+    CHECK(std::abs(right.box.x - (K.cx - K.fx * kSx / 2 / fz)) <= 3);
+    CHECK(std::abs(right.box.y - (K.cy - K.fy * kSy / 2 / fz)) <= 3);
+    CHECK(std::abs(right.box.w - K.fx * kSx / fz) <= 4);
+    CHECK(std::abs(right.box.h - K.fy * kSy / fz) <= 4);
 
     // 40 mm nearer the camera: the sensor sees the face 40 mm behind the model's: violations.
     const Verification front = verify_pose(tree, info, at(0, 0, -40), di, obs, opt);
@@ -108,6 +117,11 @@ TEST_CASE("verify_pose: right, in front, behind, beside, occluded, no depth", "[
     CHECK(occl.violation < 0.03);
     CHECK(occl.support > 0.75);
     CHECK(occl.score > occl.explained);
+    // Its box starts where the occluder ends: what the depth confirms, not the model's outline.
+    const int cover_col = int(K.cx - 0.2 * K.fx * kSx / (kZ - kSz / 2));
+    CHECK(occl.box.x >= cover_col - 2);
+    CHECK(occl.box.x + occl.box.w == right.box.x + right.box.w);
+    CHECK(occl.box.h == right.box.h);
     // No depth at all: nothing to verify.
     const std::vector<float> none(depth.size(), 0.f);
     const Verification nodepth = verify_pose(tree, info, at(0, 0, 0), DepthImage{none.data(), K},
@@ -115,6 +129,8 @@ TEST_CASE("verify_pose: right, in front, behind, beside, occluded, no depth", "[
     CHECK(nodepth.visible == 0);
     CHECK(nodepth.unmeasured > 200);
     CHECK(nodepth.score == 0.0);
+    CHECK(nodepth.box.empty());
+    CHECK(behind.box.empty());  // fewer inliers than min_visible: no box to place
     // No object points: seg_agree 0, so no score either.
     CHECK(verify_pose(tree, info, at(0, 0, 0), di, Points(0, 3), opt).score == 0.0);
     // Behind the camera: nothing visible.

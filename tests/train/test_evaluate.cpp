@@ -143,7 +143,13 @@ TEST_CASE("evaluate_instances: detector boxes take the hypotheses road and are m
         CHECK(r.verify_score >= 0.0);
         CHECK(r.score >= 0.0);
         CHECK(r.score > 0.5);
-        CHECK(r.det_iou == Approx(1.0));
+        // The detection was the GT box; the pose is reported with the box of its surface the
+        // depth explains (the inliers' pixels: inside the mask's box, short of its edges where
+        // the sensor has no depth).
+        CHECK(r.det_iou_detector == Approx(1.0));
+        CHECK(r.detector_box.w > 0);
+        CHECK(r.det_iou > 0.75);
+        CHECK(r.det_iou < 1.0);
     }
     for (const InstanceResult* r : fps) {
         CHECK(r->reported);
@@ -158,6 +164,7 @@ TEST_CASE("evaluate_instances: detector boxes take the hypotheses road and are m
     CHECK(rd.average.false_positives == int(fps.size()));
     CHECK(rd.average.pose_precision == Approx(100.0 * 4 / double(det.size())));
     CHECK(rd.average.det_recall_50 == Approx(100.0));
+    CHECK(rd.average.detector_recall_50 == Approx(100.0));
     CHECK(rd.average.auc_adds == rg.average.auc_adds);
     CHECK(hyps.size() == dets.size());  // every candidate is a hypothesis with a verdict
     int accepted = 0;
@@ -205,6 +212,8 @@ TEST_CASE("pr_curve and aggregate: false positives lower the precision only, fit
         r.box_hit = right;
         r.score = score;
         r.det_iou = fp ? -1 : (found ? 0.9 : 0.0);
+        // The detector's own box is loose around the right poses' instances.
+        r.det_iou_detector = fp ? -1 : (found && !right ? 0.6 : 0.3);
         r.adds_mm = r.add_mm = r.addsym_mm = right ? 1.0 : 50.0;
         return r;
     };
@@ -221,6 +230,8 @@ TEST_CASE("pr_curve and aggregate: false positives lower the precision only, fit
     CHECK(r.average.false_positives == 1);
     CHECK(r.average.pose_precision == Approx(50.0));
     CHECK(r.average.det_precision_50 == Approx(50.0));
+    CHECK(r.average.det_recall_50 == Approx(75.0));       // 3 reported boxes of 4 instances
+    CHECK(r.average.detector_recall_50 == Approx(25.0));  // the wrong pose's detection only
     CHECK(r.average.acc_adds_all_10 == Approx(50.0));  // 2 right of 4 instances
     const auto c = pr_curve(rs);
     REQUIRE(c.size() == 4);

@@ -126,6 +126,10 @@ struct ObjectPose {
         double violation = -1;   ///< share seen through (free-space violations)
         double occlusion = -1;   ///< share hidden behind something nearer
         double seg_agree = -1;   ///< share of the object points on the posed surface
+        /// The box of the posed surface the depth explains (x, y, w, h px): the pixels of the
+        /// inlier points, a box drawn by the pose where `bbox` is the detector's; all 0 with
+        /// too few inliers to place one (or not verified).
+        std::array<int, 4> bbox{{0, 0, 0, 0}};
     } check;
     bool verified = false;         ///< `score` is the depth verification's
     /// rejected_duplicate / rejected_overlap: the index (in the returned list) of the pose that

@@ -1,0 +1,230 @@
+// SPDX-License-Identifier: MIT
+// The hypotheses road's selection (infer::select_hypotheses) on hand-made verified hypotheses:
+// the best score wins a conflict unless the arbiter prefers the depth's evidence of a lower
+// one; duplicates and overlaps name their rival in the returned order; fill-ins never displace.
+// And the arbiter's fit (eval::fit_arbiter) on made-up conflicts.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "eval/evaluate.h"
+#include "infer/frame_pipeline.h"
+
+using g2l::infer::ArbiterModel;
+using g2l::infer::HypothesisTuning;
+using g2l::infer::Hypothesis;
+using g2l::infer::ScoreModel;
+using g2l::infer::Verdict;
+
+namespace {
+
+const g2l::geom::Intrinsics kK{600, 600, 320, 240, 640, 480};
+const std::map<int, double> kDiameter{{1, 100.0}, {2, 100.0}, {3, 100.0}};
+
+// A posed, verified hypothesis of `obj` at `t` (mm) whose 80 px box agrees with its distance
+// (100 mm at 600 mm: ~100 px), its verification's parts given, the score from `tune`'s model.
+Hypothesis verified(const HypothesisTuning& tune, int obj, Eigen::Vector3d t, double det,
+                    double explained, double violation, double seg_agree,
+                    std::vector<int32_t> footprint) {
+    Hypothesis h;
+    h.cand.obj_id = h.cand.det_obj_id = obj;
+    h.cand.det_score = det;
+    h.cand.box = {280, 200, 80, 80};
+    h.outcome.obj_id = obj;
+    h.outcome.status = g2l::infer::PoseStatus::ok;
+    h.outcome.box = h.cand.box;
+    h.outcome.pose.t = t;
+    h.verified = true;
+    h.check.explained = explained;
+    h.check.violation = violation;
+    h.check.occlusion = 1 - explained - violation;
+    h.check.seg_agree = seg_agree;
+    h.check.score = explained * seg_agree;
+    h.check.footprint = std::move(footprint);
+    h.score = tune.score_model.probability(h.check, det, false);
+    return h;
+}
+
+std::vector<int32_t> cells(int from, int to) {
+    std::vector<int32_t> v;
+    for (int c = from; c < to; ++c) v.push_back(c);
+    return v;
+}
+
+double strength(const HypothesisTuning& tune, const Hypothesis& h) {
+    const auto f = ScoreModel::features(h.check, h.cand.det_score, false);
+    double z = 0;
+    for (int k = 0; k < ScoreModel::kFeatures; ++k) z += tune.arbiter.w[size_t(k)] * f[size_t(k)];
+    return z;
+}
+
+}  // namespace
+
+TEST_CASE("select_hypotheses: the arbiter lets the depth's evidence beat a higher detector score "
+          "where two objects claim the same depth", "[infer][select]") {
+    HypothesisTuning tune;
+    // A strong peak whose pose the depth explains poorly, and a weak peak of another object
+    // at the same place that the depth explains well: the score model ranks the first higher
+    // (its heat weighs most), the arbiter prefers the second.
+    const Hypothesis loud = verified(tune, 1, {0, 0, 600}, 0.9, 0.62, 0.25, 0.60, cells(0, 100));
+    const Hypothesis right = verified(tune, 2, {5, 0, 600}, 0.3, 1.0, 0.0, 1.0, cells(10, 100));
+    REQUIRE(loud.score > right.score);
+    REQUIRE(tune.arbiter.prefer(ScoreModel::features(right.check, 0.3, false),
+                                ScoreModel::features(loud.check, 0.9, false)) > 0.5);
+    CHECK(strength(tune, right) > strength(tune, loud));
+    // Elsewhere in the frame, a third pose that conflicts with neither.
+    const Hypothesis other = verified(tune, 3, {200, 0, 600}, 0.5, 0.9, 0.0, 0.9, cells(500, 560));
+
+    auto out = g2l::infer::select_hypotheses({loud, right, other}, tune, kDiameter, kK, 0.0);
+    REQUIRE(out.size() == 3);
+    CHECK(out[0].accepted());
+    CHECK(out[1].accepted());
+    int kept_obj = out[0].cand.obj_id == 3 ? out[1].cand.obj_id : out[0].cand.obj_id;
+    CHECK(kept_obj == 2);
+    // Accepted first by score: the loud pose (rejected) comes last and names the right one.
+    CHECK(out[2].cand.obj_id == 1);
+    CHECK(out[2].verdict == Verdict::overlap);
+    REQUIRE(out[2].rival >= 0);
+    CHECK(out[size_t(out[2].rival)].cand.obj_id == 2);
+    CHECK(out[0].score >= out[1].score);
+
+    // Without the arbiter the higher score wins, as before it.
+    HypothesisTuning plain = tune;
+    plain.arbitrate = false;
+    out = g2l::infer::select_hypotheses({loud, right, other}, plain, kDiameter, kK, 0.0);
+    REQUIRE(out.size() == 3);
+    CHECK(out[2].cand.obj_id == 2);
+    CHECK(out[2].verdict == Verdict::overlap);
+    CHECK(out[size_t(out[2].rival)].cand.obj_id == 1);
+
+    // The arbiter only decides conflicts: footprints apart, both are kept.
+    Hypothesis apart = right;
+    apart.check.footprint = cells(200, 290);
+    out = g2l::infer::select_hypotheses({loud, apart}, tune, kDiameter, kK, 0.0);
+    CHECK(out[0].accepted());
+    CHECK(out[1].accepted());
+
+    // A pose the depth explains no better stays rejected, naming the higher score.
+    Hypothesis weak = loud;
+    weak.cand.obj_id = weak.cand.det_obj_id = weak.outcome.obj_id = 2;
+    weak.cand.det_score = 0.3;
+    weak.score = tune.score_model.probability(weak.check, 0.3, false);
+    out = g2l::infer::select_hypotheses({weak, loud}, tune, kDiameter, kK, 0.0);
+    CHECK(out[0].cand.obj_id == 1);
+    CHECK(out[0].accepted());
+    CHECK(out[1].verdict == Verdict::overlap);
+    CHECK(out[1].rival == 0);
+}
+
+TEST_CASE("select_hypotheses: duplicates of one object, fill-ins, thresholds and verdicts kept",
+          "[infer][select]") {
+    HypothesisTuning tune;
+    // Two poses of object 1 whose centres lie 20 mm apart (< 0.5 x 100 mm): one instance. The
+    // lower-scored one fits the depth better: the arbiter keeps it, the other is its duplicate.
+    const Hypothesis hot = verified(tune, 1, {0, 0, 600}, 0.9, 0.6, 0.3, 0.6, cells(0, 50));
+    const Hypothesis good = verified(tune, 1, {20, 0, 600}, 0.3, 1.0, 0.0, 1.0, cells(300, 350));
+    REQUIRE(hot.score > good.score);
+    auto out = g2l::infer::select_hypotheses({hot, good}, tune, kDiameter, kK, 0.0);
+    REQUIRE(out.size() == 2);
+    CHECK(out[0].accepted());
+    CHECK(out[0].outcome.pose.t.x() == 20.0);
+    CHECK(out[1].verdict == Verdict::duplicate);
+    CHECK(out[1].rival == 0);
+    // 60 mm apart: two instances, both kept.
+    Hypothesis far = good;
+    far.outcome.pose.t.x() = 60;
+    out = g2l::infer::select_hypotheses({hot, far}, tune, kDiameter, kK, 0.0);
+    CHECK(out[0].accepted());
+    CHECK(out[1].accepted());
+
+    // A fill-in (a followed pose) never displaces a fresh one, however well it fits.
+    Hypothesis fill = good;
+    fill.fill_in = true;
+    fill.tracked = true;
+    out = g2l::infer::select_hypotheses({fill, hot}, tune, kDiameter, kK, 0.0);
+    CHECK(out[0].outcome.pose.t.x() == 0.0);
+    CHECK(out[0].accepted());
+    CHECK(out[1].fill_in);
+    CHECK(out[1].verdict == Verdict::duplicate);
+
+    // Below the threshold: low_score, never a rival; the one above is kept alone.
+    out = g2l::infer::select_hypotheses({hot, good}, tune, kDiameter, kK,
+                                        0.5 * (hot.score + good.score));
+    CHECK(out[0].accepted());
+    CHECK(out[0].outcome.pose.t.x() == 0.0);
+    CHECK(out[1].verdict == Verdict::low_score);
+    CHECK(out[1].rival == -1);
+
+    // Covered hypotheses keep their verdict; one without a pose is no_pose; a pose 10 m away
+    // from an 80 px box is implausible.
+    Hypothesis covered = good;
+    covered.verdict = Verdict::covered;
+    covered.outcome.status = g2l::infer::PoseStatus::no_depth;
+    Hypothesis lost = good;
+    lost.outcome.status = g2l::infer::PoseStatus::no_depth;
+    Hypothesis far_away = good;
+    far_away.outcome.pose.t = {0, 0, 10000};
+    out = g2l::infer::select_hypotheses({covered, lost, far_away}, tune, kDiameter, kK, 0.0);
+    REQUIRE(out.size() == 3);
+    int n_cov = 0, n_none = 0, n_imp = 0;
+    for (const auto& h : out) {
+        n_cov += h.verdict == Verdict::covered;
+        n_none += h.verdict == Verdict::no_pose;
+        n_imp += h.verdict == Verdict::implausible;
+    }
+    CHECK(n_cov == 1);
+    CHECK(n_none == 1);
+    CHECK(n_imp == 1);
+    // A posed object without a diameter is an error naming it.
+    Hypothesis unknown = good;
+    unknown.cand.obj_id = 9;
+    CHECK_THROWS_WITH(g2l::infer::select_hypotheses({unknown}, tune, kDiameter, kK, 0.0),
+                      Catch::Contains("object 9") && Catch::Contains("diameter"));
+}
+
+TEST_CASE("fit_arbiter: learns which parts tell the right pose of a conflict, bad input named",
+          "[infer][select][eval]") {
+    using g2l::eval::HypothesisRecord;
+    // Frames of two hypotheses each: a loser (overlap, rival 0) and its winner. The right one
+    // of each pair has the higher explained share; the detector's score says nothing (random).
+    std::vector<HypothesisRecord> hs;
+    uint32_t seed = 7;
+    auto rnd = [&] { seed = seed * 1664525u + 1013904223u; return double(seed >> 8) / 16777216.0; };
+    for (int f = 0; f < 60; ++f) {
+        HypothesisRecord w, l;
+        w.scene = l.scene = "000000";
+        w.image_id = l.image_id = f;
+        w.verdict = "accepted";
+        l.verdict = f % 3 ? "overlap" : "duplicate";
+        l.rival = 0;
+        w.posed = l.posed = w.verified = l.verified = true;
+        const bool loser_right = f % 2 == 0;
+        for (HypothesisRecord* h : {&w, &l}) {
+            const bool right = (h == &l) == loser_right;
+            h->pose_right = right;
+            h->features = {1.0, right ? 0.8 + 0.2 * rnd() : 0.4 + 0.3 * rnd(), 0.1 * rnd(),
+                           0.1, 0.9, 0.5, std::log(0.1 + 0.8 * rnd()), 0.0};
+        }
+        hs.push_back(w);
+        hs.push_back(l);
+    }
+    const ArbiterModel am = g2l::eval::fit_arbiter(hs);
+    CHECK(am.w[0] == 0.0);
+    CHECK(am.w[1] > 2.0);                      // the explained share decides
+    CHECK(std::abs(am.w[6]) < 0.5 * am.w[1]);  // the detector's score does not
+    int agree = 0;
+    for (size_t i = 1; i < hs.size(); i += 2)
+        agree += (am.prefer(hs[i].features, hs[i - 1].features) > 0.5) == hs[i].pose_right;
+    CHECK(agree >= 57);  // of 60
+    // prefer is a probability, symmetric: P(a over b) + P(b over a) = 1.
+    CHECK(am.prefer(hs[0].features, hs[1].features) + am.prefer(hs[1].features, hs[0].features) ==
+          Approx(1.0));
+
+    // Too few conflicts with one right pose, or a rival outside its frame: named.
+    std::vector<HypothesisRecord> few(hs.begin(), hs.begin() + 10);
+    CHECK_THROWS_WITH(g2l::eval::fit_arbiter(few), Catch::Contains("at least 10"));
+    std::vector<HypothesisRecord> bad = hs;
+    bad[1].rival = 5;
+    CHECK_THROWS_WITH(g2l::eval::fit_arbiter(bad),
+                      Catch::Contains("rival 5") && Catch::Contains("image 0"));
+}

@@ -515,6 +515,18 @@ std::vector<Hypothesis> select_hypotheses(std::vector<Hypothesis> hs,
         }
         keep(i);
     }
+    // A pose that lost to one the arbiter dropped later is tried again, so that every rival
+    // named is a kept pose. Each pose kept this way outranks (by the arbiter's order, w .
+    // features) every pose it drops, so the passes end; they run only after a replacement.
+    for (bool changed = true; changed;) {
+        changed = false;
+        for (const size_t i : order) {
+            const Hypothesis& h = hs[i];
+            if ((h.verdict == Verdict::duplicate || h.verdict == Verdict::overlap) &&
+                h.rival >= 0 && !hs[size_t(h.rival)].accepted())
+                changed = keep(i) || changed;
+        }
+    }
     // 4. Accepted first, then the rejected, each by score; rivals renumbered.
     std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
         const bool ka = hs[a].accepted(), kb = hs[b].accepted();

@@ -239,7 +239,8 @@ struct Hypothesis {
 /// tune.duplicate_frac x its `diameter`: duplicate) or claims the same depth (footprints
 /// overlapping by more than tune.overlap_frac: overlap) and the arbiter (tune.arbiter, with
 /// tune.arbitrate) does not prefer it to each such kept pose; the kept poses it is preferred to
-/// are dropped then, naming it as their rival. Covered hypotheses keep their verdict. Returns
+/// are dropped then, naming it as their rival; a pose that had lost to a dropped one is tried
+/// again, so every rival named is a kept pose. Covered hypotheses keep their verdict. Returns
 /// them accepted first, then the rejected, each by score; rivals index the returned order.
 std::vector<Hypothesis> select_hypotheses(std::vector<Hypothesis> hs,
                                           const HypothesisTuning& tune,

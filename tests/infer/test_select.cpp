@@ -116,6 +116,32 @@ TEST_CASE("select_hypotheses: the arbiter lets the depth's evidence beat a highe
     CHECK(out[1].rival == 0);
 }
 
+TEST_CASE("select_hypotheses: a pose that lost to one the arbiter dropped later is tried again",
+          "[infer][select]") {
+    HypothesisTuning tune;
+    // A (loud) claims cells 0-199; B claims 150-199, inside A's; C claims 0-99, inside A's
+    // but apart from B. Scores A > B > C; the arbiter prefers A to B and C to A.
+    const Hypothesis a = verified(tune, 1, {0, 0, 600}, 0.9, 0.62, 0.25, 0.60, cells(0, 200));
+    const Hypothesis b = verified(tune, 2, {60, 0, 600}, 0.9, 0.55, 0.25, 0.55, cells(150, 200));
+    const Hypothesis c = verified(tune, 3, {-40, 0, 600}, 0.3, 1.0, 0.0, 1.0, cells(0, 100));
+    REQUIRE(a.score > b.score);
+    REQUIRE(b.score > c.score);
+    REQUIRE(strength(tune, a) > strength(tune, b));
+    REQUIRE(strength(tune, c) > strength(tune, a));
+    const auto out = g2l::infer::select_hypotheses({c, a, b}, tune, kDiameter, kK, 0.0);
+    REQUIRE(out.size() == 3);
+    // B first lost to A; A then lost to C; B, apart from C, is kept after all.
+    CHECK(out[0].accepted());
+    CHECK(out[1].accepted());
+    CHECK(out[0].cand.obj_id == 2);  // accepted by score: B before C
+    CHECK(out[1].cand.obj_id == 3);
+    CHECK(out[2].cand.obj_id == 1);
+    CHECK(out[2].verdict == Verdict::overlap);
+    CHECK(out[2].rival == 1);
+    for (const auto& h : out)  // every rival named is a kept pose
+        if (h.rival >= 0) CHECK(out[size_t(h.rival)].accepted());
+}
+
 TEST_CASE("select_hypotheses: duplicates of one object, fill-ins, thresholds and verdicts kept",
           "[infer][select]") {
     HypothesisTuning tune;

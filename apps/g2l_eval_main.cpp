@@ -271,7 +271,9 @@ void add_options(CLI::App& app, Job& j) {
                    "pose is right, ADD-S < 0.1 d) and the arbiter (which of two poses claiming "
                    "the same depth is the right one) to this run's hypotheses and write their "
                    "weights as JSON here (fit on renders only; the shipped weights are infer/"
-                   "frame_pipeline.h's defaults, docs/results.md)");
+                   "frame_pipeline.h's defaults, docs/results.md). The run selects in score "
+                   "order (no arbiter), so its conflicts and figures do not depend on the "
+                   "shipped arbiter");
     app.add_option("--pr-curve", j.pr_png,
                    "--boxes det / file: write the precision-recall curve of the reported poses "
                    "over their verified score as a PNG (x: recall %, y: precision %) and print "
@@ -439,6 +441,7 @@ g2l::eval::EvalOptions eval_options(const Job& j, const EvalSet& s) {
     eo.max_instances = j.max_instances;
     eo.min_visib_fract = s.min_visib;
     eo.centre_from_mask = j.centre_from_mask;
+    eo.arbitrate = j.fit_score.empty();  // a fit sees the score order's conflicts
     eo.oracle_seg = j.oracle == "seg" || j.oracle == "seg+t";
     eo.oracle_t = j.oracle == "t" || j.oracle == "seg+t";
     if (eo.min_visib_fract > 0) {

@@ -190,6 +190,9 @@ public:
                std::vector<HypothesisRecord>* hyps_out)
         : ds_(ds), class_of_(model.class_of), opt_(opt), hyps_out_(hyps_out),
           pipe_(with_dataset_diameters(model, ds), opt.pipeline) {
+        infer::HypothesisTuning tune = pipe_.tuning();
+        tune.arbitrate = opt.arbitrate;
+        pipe_.set_tuning(tune);
         if (opt.detections) {
             for (size_t i = 0; i < opt.detections->size(); ++i) {
                 const data::Detection& d = (*opt.detections)[i];
@@ -878,44 +881,66 @@ std::vector<PrPoint> pr_curve(const std::vector<InstanceResult>& results) {
     return curve;
 }
 
-infer::ScoreModel fit_score_model(const std::vector<HypothesisRecord>& hyps, double l2) {
+namespace {
+
+using FeatureVec = Eigen::Matrix<double, infer::ScoreModel::kFeatures, 1>;
+
+FeatureVec to_vec(const infer::ScoreModel::Features& f) {
+    FeatureVec x;
+    for (int k = 0; k < infer::ScoreModel::kFeatures; ++k) x[k] = f[size_t(k)];
+    return x;
+}
+
+// L2-penalised logistic regression by Newton's method: the w minimising
+// sum_i -log P(y_i | x_i) + l2 n / 2 sum_{k >= first_penalised} w_k^2, P(1 | x) =
+// ScoreModel::sigmoid(w . x).
+infer::ScoreModel::Features fit_logistic(const std::vector<FeatureVec>& x,
+                                         const std::vector<double>& y, double l2,
+                                         int first_penalised) {
     constexpr int F = infer::ScoreModel::kFeatures;
-    std::vector<const HypothesisRecord*> use;
-    int pos = 0;
-    for (const HypothesisRecord& h : hyps)
-        if (h.posed && h.verified) use.push_back(&h), pos += h.pose_right;
-    const int n = int(use.size());
-    G2L_CHECK(n >= 20 && pos > 0 && pos < n, "fit_score_model: need at least 20 verified "
-              "hypotheses with right and wrong poses among them, got ", n, " (", pos, " right)");
-    Eigen::Matrix<double, F, 1> w = Eigen::Matrix<double, F, 1>::Zero();
+    const double n = double(x.size());
+    FeatureVec w = FeatureVec::Zero();
     for (int it = 0; it < 100; ++it) {
-        Eigen::Matrix<double, F, 1> grad = Eigen::Matrix<double, F, 1>::Zero();
+        FeatureVec grad = FeatureVec::Zero();
         Eigen::Matrix<double, F, F> hess = Eigen::Matrix<double, F, F>::Zero();
-        for (const HypothesisRecord* h : use) {
-            Eigen::Matrix<double, F, 1> x;
-            for (int k = 0; k < F; ++k) x[k] = h->features[size_t(k)];
-            const double p = 1.0 / (1.0 + std::exp(-std::clamp(w.dot(x), -40.0, 40.0)));
-            grad += (p - (h->pose_right ? 1.0 : 0.0)) * x;
-            hess += std::max(p * (1 - p), 1e-9) * x * x.transpose();
+        for (size_t i = 0; i < x.size(); ++i) {
+            const double p = infer::ScoreModel::sigmoid(w.dot(x[i]));
+            grad += (p - y[i]) * x[i];
+            hess += std::max(p * (1 - p), 1e-9) * x[i] * x[i].transpose();
         }
-        for (int k = 1; k < F; ++k) {  // the bias is not penalised
+        for (int k = first_penalised; k < F; ++k) {
             grad[k] += l2 * n * w[k];
             hess(k, k) += l2 * n;
         }
         hess.diagonal().array() += 1e-9;
-        const Eigen::Matrix<double, F, 1> step = hess.ldlt().solve(grad);
+        const FeatureVec step = hess.ldlt().solve(grad);
         w -= step;
         if (step.cwiseAbs().maxCoeff() < 1e-8) break;
     }
+    infer::ScoreModel::Features out;
+    for (int k = 0; k < F; ++k) out[size_t(k)] = w[k];
+    return out;
+}
+
+}  // namespace
+
+infer::ScoreModel fit_score_model(const std::vector<HypothesisRecord>& hyps, double l2) {
+    std::vector<FeatureVec> x;
+    std::vector<double> y;  // 1: the pose is right
+    for (const HypothesisRecord& h : hyps)
+        if (h.posed && h.verified) x.push_back(to_vec(h.features)), y.push_back(h.pose_right);
+    const int n = int(x.size());
+    const int pos = int(std::count(y.begin(), y.end(), 1.0));
+    G2L_CHECK(n >= 20 && pos > 0 && pos < n, "fit_score_model: need at least 20 verified "
+              "hypotheses with right and wrong poses among them, got ", n, " (", pos, " right)");
     infer::ScoreModel m;
-    for (int k = 0; k < F; ++k) m.w[size_t(k)] = w[k];
+    m.w = fit_logistic(x, y, l2, 1);  // the bias is not penalised
     return m;
 }
 
 infer::ArbiterModel fit_arbiter(const std::vector<HypothesisRecord>& hyps, double l2) {
-    constexpr int F = infer::ScoreModel::kFeatures;
-    std::vector<Eigen::Matrix<double, F, 1>> dx;  // loser - winner
-    std::vector<double> y;                        // 1: the loser was the right one
+    std::vector<FeatureVec> dx;  // loser - winner
+    std::vector<double> y;       // 1: the loser was the right one
     for (size_t b = 0; b < hyps.size();) {  // one frame's records: [b, e)
         size_t e = b + 1;
         while (e < hyps.size() && hyps[e].scene == hyps[b].scene &&
@@ -929,9 +954,7 @@ infer::ArbiterModel fit_arbiter(const std::vector<HypothesisRecord>& hyps, doubl
                       ", outside its frame's ", e - b, " hypotheses");
             const HypothesisRecord& w = hyps[b + size_t(h.rival)];
             if (!h.verified || !w.verified || h.pose_right == w.pose_right) continue;
-            Eigen::Matrix<double, F, 1> d;
-            for (int k = 0; k < F; ++k) d[k] = h.features[size_t(k)] - w.features[size_t(k)];
-            dx.push_back(d);
+            dx.push_back(to_vec(h.features) - to_vec(w.features));
             y.push_back(h.pose_right ? 1.0 : 0.0);
         }
         b = e;
@@ -939,21 +962,8 @@ infer::ArbiterModel fit_arbiter(const std::vector<HypothesisRecord>& hyps, doubl
     const int n = int(dx.size());
     G2L_CHECK(n >= 10, "fit_arbiter: need at least 10 duplicates or overlaps where exactly one "
               "of the two poses is right, got ", n);
-    Eigen::Matrix<double, F, 1> w = Eigen::Matrix<double, F, 1>::Zero();
-    for (int it = 0; it < 100; ++it) {
-        Eigen::Matrix<double, F, 1> grad = l2 * n * w;
-        Eigen::Matrix<double, F, F> hess = Eigen::Matrix<double, F, F>::Identity() * (l2 * n);
-        for (int i = 0; i < n; ++i) {
-            const double p = 1.0 / (1.0 + std::exp(-std::clamp(w.dot(dx[size_t(i)]), -40.0, 40.0)));
-            grad += (p - y[size_t(i)]) * dx[size_t(i)];
-            hess += std::max(p * (1 - p), 1e-9) * dx[size_t(i)] * dx[size_t(i)].transpose();
-        }
-        const Eigen::Matrix<double, F, 1> step = hess.ldlt().solve(grad);
-        w -= step;
-        if (step.cwiseAbs().maxCoeff() < 1e-8) break;
-    }
     infer::ArbiterModel m;
-    for (int k = 0; k < F; ++k) m.w[size_t(k)] = w[k];
+    m.w = fit_logistic(dx, y, l2, 0);
     m.w[0] = 0;  // the bias's difference is 0: its weight is never fitted
     return m;
 }

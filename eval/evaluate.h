@@ -51,6 +51,10 @@ struct EvalOptions {
     /// translation, so the errors are then the rotation's alone).
     bool oracle_seg = false;
     bool oracle_t = false;
+    /// false: conflicts between hypotheses go to the higher score (infer::HypothesisTuning::
+    /// arbitrate off) — the conflicts the arbiter is fitted on (fit_arbiter), reproducible
+    /// whatever arbiter is shipped.
+    bool arbitrate = true;
     double label_threshold_mm = 8.0;  ///< the object-point rule of the seg IoU and oracle_seg
 };
 

@@ -291,25 +291,29 @@ void FramePipeline::run(const float* depth, const geom::Intrinsics& K,
     estimate(depth, K, out, nullptr, verify_opt);
 }
 
-std::array<double, ScoreModel::kFeatures> ScoreModel::features(const geom::Verification& v,
-                                                               double det_score, bool borrowed) {
+ScoreModel::Features ScoreModel::features(const geom::Verification& v, double det_score,
+                                          bool borrowed) {
     return {{1.0, v.explained, v.violation, v.occlusion, v.seg_agree, v.score,
              std::log(std::clamp(det_score, 1e-3, 1.0)), borrowed ? 1.0 : 0.0}};
 }
 
-double ScoreModel::probability(const geom::Verification& v, double det_score,
-                               bool borrowed) const {
-    const auto x = features(v, det_score, borrowed);
+double ScoreModel::dot(const Features& w, const Features& x) {
     double z = 0;
     for (int k = 0; k < kFeatures; ++k) z += w[size_t(k)] * x[size_t(k)];
-    return 1.0 / (1.0 + std::exp(-std::clamp(z, -40.0, 40.0)));
+    return z;
 }
 
-double ArbiterModel::prefer(const std::array<double, ScoreModel::kFeatures>& a,
-                            const std::array<double, ScoreModel::kFeatures>& b) const {
-    double z = 0;
-    for (int k = 0; k < ScoreModel::kFeatures; ++k) z += w[size_t(k)] * (a[size_t(k)] - b[size_t(k)]);
-    return 1.0 / (1.0 + std::exp(-std::clamp(z, -40.0, 40.0)));
+double ScoreModel::sigmoid(double z) { return 1.0 / (1.0 + std::exp(-std::clamp(z, -40.0, 40.0))); }
+
+double ScoreModel::probability(const geom::Verification& v, double det_score,
+                               bool borrowed) const {
+    return sigmoid(dot(w, features(v, det_score, borrowed)));
+}
+
+double ArbiterModel::prefer(const ScoreModel::Features& a, const ScoreModel::Features& b) const {
+    ScoreModel::Features d;
+    for (int k = 0; k < ScoreModel::kFeatures; ++k) d[size_t(k)] = a[size_t(k)] - b[size_t(k)];
+    return ScoreModel::sigmoid(ScoreModel::dot(w, d));
 }
 
 const char* to_string(Verdict v) {
@@ -455,9 +459,11 @@ std::vector<Hypothesis> select_hypotheses(std::vector<Hypothesis> hs,
         return hs[a].score > hs[b].score;
     });
     std::vector<size_t> kept;
-    auto features = [](const Hypothesis& x) {
-        return ScoreModel::features(x.check, x.cand.det_score, x.cand.det_obj_id != x.cand.obj_id);
-    };
+    std::vector<ScoreModel::Features> features(hs.size());  // the arbiter's inputs, once a pose
+    for (size_t i = 0; i < hs.size(); ++i)
+        if (hs[i].verified)
+            features[i] = ScoreModel::features(hs[i].check, hs[i].cand.det_score,
+                                               hs[i].cand.det_obj_id != hs[i].cand.obj_id);
     // Keeps hypothesis i unless a kept pose is the same instance or claims the same depth and
     // the arbiter does not prefer i to it; the kept poses i beats are dropped. Whether kept.
     auto keep = [&](size_t i) {
@@ -479,7 +485,7 @@ std::vector<Hypothesis> select_hypotheses(std::vector<Hypothesis> hs,
             const Verdict c = conflict(w);
             if (c == Verdict::accepted) continue;
             if (tune.arbitrate && h.verified && w.verified && !h.fill_in && !w.fill_in &&
-                tune.arbiter.prefer(features(h), features(w)) > 0.5) {
+                tune.arbiter.prefer(features[i], features[k]) > 0.5) {
                 beaten.emplace_back(k, c);
                 continue;
             }

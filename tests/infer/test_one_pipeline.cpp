@@ -289,6 +289,27 @@ TEST_CASE("FramePipeline: candidates spend the budget on each object's best peak
     CHECK(hs[1].rival == 0);
     CHECK(hs[1].score <= hs[0].score);
     CHECK(hs[1].outcome.ok());
+    const double det_a = hs[0].cand.det_score;
+    // Other fixed settings reach the selection: an arbiter that prefers the weaker detection
+    // keeps b (a is its duplicate); with arbitrate off (g2l_eval --fit-score's run) the score
+    // order decides again.
+    const HypothesisTuning shipped = pipe.tuning();
+    HypothesisTuning odd = shipped;
+    odd.arbiter.w = {};
+    odd.arbiter.w[6] = -10.0;  // ln det_score
+    pipe.set_tuning(odd);
+    pipe.hypotheses(depth.data(), K, {b, a}, &hs);
+    REQUIRE(hs.size() == 2);
+    CHECK(hs[0].accepted());
+    CHECK(hs[0].cand.det_score < det_a);
+    CHECK(hs[1].rival == 0);
+    odd.arbitrate = false;
+    pipe.set_tuning(odd);
+    pipe.hypotheses(depth.data(), K, {b, a}, &hs);
+    REQUIRE(hs.size() == 2);
+    CHECK(hs[0].accepted());
+    CHECK(hs[0].cand.det_score == det_a);
+    pipe.set_tuning(shipped);
     // With the default cover: the second look at the same object (its box centre on depth the
     // first, confident pose explains) is not posed at all.
     pipe.set_options(po);

@@ -52,10 +52,7 @@ std::vector<int32_t> cells(int from, int to) {
 }
 
 double strength(const HypothesisTuning& tune, const Hypothesis& h) {
-    const auto f = ScoreModel::features(h.check, h.cand.det_score, false);
-    double z = 0;
-    for (int k = 0; k < ScoreModel::kFeatures; ++k) z += tune.arbiter.w[size_t(k)] * f[size_t(k)];
-    return z;
+    return ScoreModel::dot(tune.arbiter.w, ScoreModel::features(h.check, h.cand.det_score, false));
 }
 
 }  // namespace

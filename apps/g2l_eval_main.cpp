@@ -29,14 +29,16 @@ namespace {
 
 using json = nlohmann::json;
 
+// A pose as --instances and --hypotheses write it: R row-major, t in mm.
+json pose_json(const g2l::geom::Pose& p) {
+    json R = json::array();
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) R.push_back(p.R(a, b));
+    return json{{"R", R}, {"t", {p.t[0], p.t[1], p.t[2]}}};
+}
+
 // One --instances line: ids, status, box, estimate, ground truth, errors.
 json instance_json(const g2l::eval::InstanceResult& r, const std::string& set_name) {
-    auto pose_json = [](const g2l::geom::Pose& p) {
-        json R = json::array();
-        for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 3; ++b) R.push_back(p.R(a, b));
-        return json{{"R", R}, {"t", {p.t[0], p.t[1], p.t[2]}}};
-    };
     json j = {{"set", set_name}, {"scene", r.scene}, {"image_id", r.image_id},
               {"inst", r.inst_index}, {"obj_id", r.obj_id}, {"status", r.status},
               {"found", r.found}, {"score", r.score},
@@ -279,8 +281,8 @@ void add_options(CLI::App& app, Job& j) {
                    "over their verified score as a PNG (x: recall %, y: precision %) and print "
                    "its points");
     app.add_option("--hypotheses", j.hyps_path,
-                   "--boxes det / file: write every hypothesis (score, verdict, right) as JSON "
-                   "lines");
+                   "--boxes det / file: write every hypothesis (score, verdict, rival, right, the "
+                   "score model's features, box and, when posed, the pose `est`) as JSON lines");
     app.add_flag("--verbose", j.verbose, "error messages with their source location (also G2L_VERBOSE=1)");
 }
 
@@ -533,14 +535,15 @@ struct Outputs {
     }
     void hypotheses(const std::vector<g2l::eval::HypothesisRecord>& hyps, const std::string& set) {
         if (!hyp.is_open()) return;
-        for (const auto& h : hyps)
-            hyp << json{{"set", set}, {"scene", h.scene}, {"image_id", h.image_id},
-                        {"obj_id", h.obj_id}, {"score", h.score}, {"det_score", h.det_score},
-                        {"verdict", h.verdict}, {"rival", h.rival}, {"right", h.right},
-                        {"pose_right", h.pose_right}, {"features", h.features},
-                        {"box", {h.box.x, h.box.y, h.box.w, h.box.h}}}
-                       .dump()
-                << "\n";
+        for (const auto& h : hyps) {
+            json r = {{"set", set}, {"scene", h.scene}, {"image_id", h.image_id},
+                      {"obj_id", h.obj_id}, {"score", h.score}, {"det_score", h.det_score},
+                      {"verdict", h.verdict}, {"rival", h.rival}, {"right", h.right},
+                      {"pose_right", h.pose_right}, {"features", h.features},
+                      {"box", {h.box.x, h.box.y, h.box.w, h.box.h}}};
+            if (h.posed) r["est"] = pose_json(h.est);
+            hyp << r.dump() << "\n";
+        }
     }
     void close(const Job& j) {
         if (csv.is_open()) {

@@ -443,9 +443,10 @@ std::vector<Hypothesis> select_hypotheses(std::vector<Hypothesis> hs,
                                           const std::map<int, double>& diameter,
                                           const geom::Intrinsics& K, double min_pose_score) {
     // 3. Greedy selection, best score first: a hypothesis is kept unless a kept one is the same
-    //    instance (same object, centres closer than duplicate_frac x diameter) or claims the
-    //    same depth (footprints overlapping by more than overlap_frac) — and the arbiter does
-    //    not prefer it to every kept one it conflicts with; those it beats are dropped then.
+    //    instance (same object, centres closer than duplicate_frac x diameter, some depth
+    //    shared) or claims the same depth (footprints overlapping by more than overlap_frac)
+    //    — and the arbiter does not prefer it to every kept one it conflicts with; those it
+    //    beats are dropped then.
     for (const Hypothesis& h : hs)
         G2L_CHECK(!h.outcome.ok() || diameter.count(h.cand.obj_id), "select_hypotheses: object ",
                   h.cand.obj_id, " is posed but has no diameter");
@@ -470,11 +471,14 @@ std::vector<Hypothesis> select_hypotheses(std::vector<Hypothesis> hs,
         Hypothesis& h = hs[i];
         // What a kept pose w is to h: the same instance, the same depth, or neither.
         auto conflict = [&](const Hypothesis& w) {
+            const bool both_verified = h.verified && w.verified;
             if (w.cand.obj_id == h.cand.obj_id &&
                 (w.outcome.pose.t - h.outcome.pose.t).norm() <
-                    tune.duplicate_frac * diameter.at(h.cand.obj_id))
+                    tune.duplicate_frac * diameter.at(h.cand.obj_id) &&
+                (!both_verified || geom::footprint_overlap(w.check.footprint, h.check.footprint) >
+                                       tune.duplicate_overlap))
                 return Verdict::duplicate;
-            if (h.verified && w.verified &&
+            if (both_verified &&
                 geom::footprint_overlap(w.check.footprint, h.check.footprint) > tune.overlap_frac)
                 return Verdict::overlap;
             return Verdict::accepted;

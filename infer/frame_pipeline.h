@@ -174,8 +174,12 @@ struct HypothesisTuning {
     /// this share of its detection score.
     double alike_discount = 0.8;
     /// Two poses of one object whose centres lie closer than this fraction of its diameter are
-    /// one instance: the lower score is a duplicate.
+    /// one instance — the lower score is a duplicate — when they also claim some of the same
+    /// depth: more than duplicate_overlap of the lower one's footprint
+    /// (geom::footprint_overlap; unverified poses: the centres alone). Copies of one part
+    /// touching in a bin lie closer than half a diameter yet claim different pixels.
     double duplicate_frac = 0.5;
+    double duplicate_overlap = 0.1;
     /// A pose more than this share of whose depth a higher-scored kept pose claims too
     /// (geom::footprint_overlap) is rejected ("overlap"): two objects cannot fill the same
     /// space.
@@ -240,7 +244,8 @@ struct Hypothesis {
 /// (fill-ins last), each kept unless its pose is missing (no_pose), its distance disagrees with
 /// its box (implausible_distance: implausible), its score is below `min_pose_score`
 /// (low_score), or a kept pose is the same instance (same object, centres closer than
-/// tune.duplicate_frac x its `diameter`: duplicate) or claims the same depth (footprints
+/// tune.duplicate_frac x its `diameter` and footprints overlapping by more than
+/// tune.duplicate_overlap: duplicate) or claims the same depth (footprints
 /// overlapping by more than tune.overlap_frac: overlap) and the arbiter (tune.arbiter, with
 /// tune.arbitrate) does not prefer it to each such kept pose; the kept poses it is preferred to
 /// are dropped then, naming it as their rival; a pose that had lost to a dropped one is tried

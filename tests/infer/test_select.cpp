@@ -142,10 +142,11 @@ TEST_CASE("select_hypotheses: a pose that lost to one the arbiter dropped later 
 TEST_CASE("select_hypotheses: duplicates of one object, fill-ins, thresholds and verdicts kept",
           "[infer][select]") {
     HypothesisTuning tune;
-    // Two poses of object 1 whose centres lie 20 mm apart (< 0.5 x 100 mm): one instance. The
-    // lower-scored one fits the depth better: the arbiter keeps it, the other is its duplicate.
+    // Two poses of object 1 whose centres lie 20 mm apart (< 0.5 x 100 mm) and that claim
+    // some of the same depth (40 of good's 50 cells): one instance. The lower-scored one fits
+    // the depth better: the arbiter keeps it, the other is its duplicate.
     const Hypothesis hot = verified(tune, 1, {0, 0, 600}, 0.9, 0.6, 0.3, 0.6, cells(0, 50));
-    const Hypothesis good = verified(tune, 1, {20, 0, 600}, 0.3, 1.0, 0.0, 1.0, cells(300, 350));
+    const Hypothesis good = verified(tune, 1, {20, 0, 600}, 0.3, 1.0, 0.0, 1.0, cells(10, 60));
     REQUIRE(hot.score > good.score);
     auto out = g2l::infer::select_hypotheses({hot, good}, tune, kDiameter, kK, 0.0);
     REQUIRE(out.size() == 2);
@@ -153,12 +154,26 @@ TEST_CASE("select_hypotheses: duplicates of one object, fill-ins, thresholds and
     CHECK(out[0].outcome.pose.t.x() == 20.0);
     CHECK(out[1].verdict == Verdict::duplicate);
     CHECK(out[1].rival == 0);
-    // 60 mm apart: two instances, both kept.
+    // 60 mm apart, depth apart: two instances, both kept.
     Hypothesis far = good;
     far.outcome.pose.t.x() = 60;
+    far.check.footprint = cells(300, 350);
     out = g2l::infer::select_hypotheses({hot, far}, tune, kDiameter, kK, 0.0);
     CHECK(out[0].accepted());
     CHECK(out[1].accepted());
+    // Copies of one part touching in a bin: centres as close as the duplicate's, but claiming
+    // other pixels (2 of 50 cells shared, below duplicate_overlap): two instances.
+    Hypothesis beside = good;
+    beside.check.footprint = cells(48, 98);
+    out = g2l::infer::select_hypotheses({hot, beside}, tune, kDiameter, kK, 0.0);
+    CHECK(out[0].accepted());
+    CHECK(out[1].accepted());
+    // Unverified poses have no footprint: their centres decide alone.
+    Hypothesis blind_hot = hot, blind = beside;
+    blind_hot.verified = blind.verified = false;
+    out = g2l::infer::select_hypotheses({blind_hot, blind}, tune, kDiameter, kK, 0.0);
+    CHECK(out[0].accepted());
+    CHECK(out[1].verdict == Verdict::duplicate);
 
     // A fill-in (a followed pose) never displaces a fresh one, however well it fits.
     Hypothesis fill = good;

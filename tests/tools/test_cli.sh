@@ -341,7 +341,17 @@ ln -sfn "$S/tests/data/ycbv_mini/models" "$T/emptyroot/models"
 expect 1 "$B/apps/g2l_eval" --checkpoint "$MODEL" --root "$T/emptyroot" --split test
 has "has no frame"
 expect 0 "$B/apps/g2l_eval" --checkpoint "$MODEL" --root "$S/tests/data/ycbv_mini" --split train_real \
-    --boxes file --detections "$T/dets.json" --bop-csv "$T/res.csv" --instances "$T/inst.jsonl" --vis "$T/vis"
+    --boxes file --detections "$T/dets.json" --bop-csv "$T/res.csv" --instances "$T/inst.jsonl" --vis "$T/vis" \
+    --hypotheses "$T/hyp.jsonl"
+# --hypotheses: one line a detection of the frames (image 1's three), the posed ones with their
+# pose (est), the one outside the image without.
+[ "$(wc -l < "$T/hyp.jsonl")" -eq 3 ] || fail "--hypotheses: expected 3 lines, got $(cat "$T/hyp.jsonl")"
+[ "$(grep -c '"est":{"R":\[' "$T/hyp.jsonl")" -eq 2 ] || fail "--hypotheses: 2 posed hypotheses with est expected"
+grep '"verdict":"no pose"' "$T/hyp.jsonl" | grep -q '"est"' && fail "--hypotheses: an unposed hypothesis with a pose"
+# object 8's pose lies near the fixture's ground truth (t = -30.6, -8.0, 592.6 mm)
+grep '"obj_id":8,' "$T/hyp.jsonl" | awk -F'"t":\\[' '{ split($2, v, /[],]/);
+    d = sqrt((v[1] + 30.6)^2 + (v[2] + 8.0)^2 + (v[3] - 592.6)^2); exit !(d < 15) }' \
+    || fail "--hypotheses: object 8's est.t is not within 15 mm of the ground truth: $(cat "$T/hyp.jsonl")"
 head -n1 "$T/res.csv" | grep -q "^scene_id,im_id,obj_id,score,R,t,time$" || fail "BOP CSV header"
 [ "$(wc -l < "$T/res.csv")" -eq 3 ] || fail "BOP CSV: expected 2 rows (image 1), got $(cat "$T/res.csv")"
 # The CSV's score is the verified one (the probability that the pose is right); the pose of

@@ -438,6 +438,22 @@ geom::Verification FramePipeline::verify(const float* depth, const geom::Intrins
                              m->grid.empty() ? nullptr : &m->grid);
 }
 
+bool same_instance(const Hypothesis& a, const Hypothesis& b, const HypothesisTuning& tune,
+                   double diameter, double shared) {
+    if (a.cand.obj_id != b.cand.obj_id ||
+        (a.outcome.pose.t - b.outcome.pose.t).norm() >= tune.duplicate_frac * diameter)
+        return false;
+    return !(a.verified && b.verified) || shared > tune.duplicate_overlap;
+}
+
+bool same_instance(const Hypothesis& a, const Hypothesis& b, const HypothesisTuning& tune,
+                   double diameter) {
+    const double shared = a.verified && b.verified
+                              ? geom::footprint_overlap(a.check.footprint, b.check.footprint)
+                              : 0;
+    return same_instance(a, b, tune, diameter, shared);
+}
+
 std::vector<Hypothesis> select_hypotheses(std::vector<Hypothesis> hs,
                                           const HypothesisTuning& tune,
                                           const std::map<int, double>& diameter,
@@ -471,16 +487,13 @@ std::vector<Hypothesis> select_hypotheses(std::vector<Hypothesis> hs,
         Hypothesis& h = hs[i];
         // What a kept pose w is to h: the same instance, the same depth, or neither.
         auto conflict = [&](const Hypothesis& w) {
+            // Both verified: the share of depth they both claim, computed once for both tests.
             const bool both_verified = h.verified && w.verified;
-            if (w.cand.obj_id == h.cand.obj_id &&
-                (w.outcome.pose.t - h.outcome.pose.t).norm() <
-                    tune.duplicate_frac * diameter.at(h.cand.obj_id) &&
-                (!both_verified || geom::footprint_overlap(w.check.footprint, h.check.footprint) >
-                                       tune.duplicate_overlap))
+            const double shared =
+                both_verified ? geom::footprint_overlap(w.check.footprint, h.check.footprint) : 0;
+            if (same_instance(h, w, tune, diameter.at(h.cand.obj_id), shared))
                 return Verdict::duplicate;
-            if (both_verified &&
-                geom::footprint_overlap(w.check.footprint, h.check.footprint) > tune.overlap_frac)
-                return Verdict::overlap;
+            if (both_verified && shared > tune.overlap_frac) return Verdict::overlap;
             return Verdict::accepted;
         };
         std::vector<std::pair<size_t, Verdict>> beaten;  // kept poses h replaces

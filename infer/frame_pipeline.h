@@ -240,6 +240,16 @@ struct Hypothesis {
     }
 };
 
+/// Whether two poses are one instance (HypothesisTuning::duplicate_frac / duplicate_overlap):
+/// one object, centres closer than duplicate_frac x its `diameter`, and — both verified — their
+/// footprints sharing more than duplicate_overlap of the lower one's (`shared`: their
+/// geom::footprint_overlap, read only when both are verified; the other form computes it).
+/// The selection's duplicate test and infer::Tracker's id hand-over.
+bool same_instance(const Hypothesis& a, const Hypothesis& b, const HypothesisTuning& tune,
+                   double diameter, double shared);
+bool same_instance(const Hypothesis& a, const Hypothesis& b, const HypothesisTuning& tune,
+                   double diameter);
+
 /// FramePipeline::hypotheses' selection, on posed (and verified) hypotheses: best score first
 /// (fill-ins last), each kept unless its pose is missing (no_pose), its distance disagrees with
 /// its box (implausible_distance: implausible), its score is below `min_pose_score`

@@ -64,18 +64,18 @@ void Tracker::step(const float* depth, const geom::Intrinsics& K,
     const std::vector<Candidate> cands = detected_ ? detect() : std::vector<Candidate>{};
     pipe_->hypotheses(depth, K, cands, out, &seeds);
     // 3. Track ids: a followed pose keeps its id; a fresh pose that beat a followed one of the
-    //    same instance (a duplicate), or lies where a dropped weak one lay, takes that id; any
-    //    other fresh pose is a new instance.
+    //    same instance (a duplicate), or is the same instance as a dropped weak one
+    //    (same_instance: near it and claiming the same depth), takes that id; any other fresh
+    //    pose is a new instance.
     std::vector<Hypothesis>& hs = *out;
     for (const Hypothesis& h : hs)
         if (h.tracked && h.verdict == Verdict::duplicate && h.rival >= 0 &&
             hs[size_t(h.rival)].track_id < 0)
             hs[size_t(h.rival)].track_id = h.track_id;
-    for (const Hypothesis& w : dropped) {  // a fresh pose where a dropped one lay takes its id
-        const double near = pipe_->tuning().duplicate_frac * pipe_->model().diameter.at(w.cand.obj_id);
+    for (const Hypothesis& w : dropped) {  // a fresh pose of the same instance takes its id
+        const double d = pipe_->model().diameter.at(w.cand.obj_id);
         for (Hypothesis& h : hs)
-            if (h.accepted() && h.track_id < 0 && h.cand.obj_id == w.cand.obj_id &&
-                (h.outcome.pose.t - w.outcome.pose.t).norm() < near) {
+            if (h.accepted() && h.track_id < 0 && same_instance(h, w, pipe_->tuning(), d)) {
                 h.track_id = w.track_id;
                 break;
             }

@@ -472,18 +472,20 @@ TEST_CASE("PoseEstimator: depth refinement against the meshes, and its option er
 
 TEST_CASE("PoseEstimator: the shipped depth detector and pose model on the real fixture frames, no GT box",
           "[infer][detector]") {
-    // What ./g2l.sh demo runs, pinned per instance near the values measured 2026-12-04 (this
-    // test prints them): box IoU, translation and rotation error of the refined pose against
-    // the fixture's ground truth. Margins: IoU -0.05, translation +2 mm, rotation +2 deg.
+    // What ./g2l.sh demo runs, pinned per instance near the values measured 2026-12-07 with
+    // the width-32 detector (this test prints them): box IoU, translation and rotation error
+    // of the refined pose against the fixture's ground truth. Margins: IoU -0.05, translation
+    // +2 mm, rotation +2 deg.
     struct Pin {
         size_t frame;
         int obj_id;
         double iou, t_mm, rot_deg;
     };
-    // The mug's 26 deg is its near-symmetry: the handle is not in view and the refinement keeps
-    // the networks' turn about the axis (ADD-S is what the mug is judged by).
-    const Pin pins[] = {{0, 8, 0.810, 0.40, 0.61}, {0, 14, 0.869, 5.36, 26.32},
-                        {1, 8, 0.879, 0.48, 0.46}, {1, 14, 0.868, 3.09, 26.14}};
+    // The mug's 16 and 114 deg are its near-symmetry: the handle is not in view, so a turn
+    // about the mug's axis fits the depth as well, and the refinement keeps the one the crop's
+    // networks start from (ADD-S is what the mug is judged by).
+    const Pin pins[] = {{0, 8, 0.831, 0.47, 0.55}, {0, 14, 0.936, 4.21, 15.71},
+                        {1, 8, 0.888, 0.61, 0.66}, {1, 14, 0.749, 6.09, 113.78}};
     g2l::EstimatorOptions o;
     o.detector = std::string(G2L_SOURCE_DIR) + "/models/ycbv_detector.g2l";
     o.meshes = g2l::testing::fixture_dir() + "/ycbv_mini/models";

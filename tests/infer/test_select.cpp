@@ -220,6 +220,34 @@ TEST_CASE("select_hypotheses: duplicates of one object, fill-ins, thresholds and
                       Catch::Contains("object 9") && Catch::Contains("diameter"));
 }
 
+TEST_CASE("same_instance: one object, near, and sharing depth when both are verified",
+          "[infer][select]") {
+    // The rule of the selection's duplicates and of the tracker's id hand-over.
+    using g2l::infer::same_instance;
+    HypothesisTuning tune;
+    const Hypothesis a = verified(tune, 1, {0, 0, 600}, 0.9, 0.9, 0.0, 0.9, cells(0, 50));
+    Hypothesis b = verified(tune, 1, {20, 0, 600}, 0.5, 0.9, 0.0, 0.9, cells(10, 60));
+    CHECK(same_instance(a, b, tune, 100.0));        // 40 of 50 cells shared, 20 mm apart
+    CHECK(same_instance(b, a, tune, 100.0));
+    CHECK_FALSE(same_instance(a, b, tune, 30.0));   // 20 mm >= 0.5 x 30 mm
+    Hypothesis beside = b;
+    beside.check.footprint = cells(48, 98);         // 2 of 50 shared: a touching copy
+    CHECK_FALSE(same_instance(a, beside, tune, 100.0));
+    tune.duplicate_overlap = 0.02;                  // 0.04 > 0.02: one instance again
+    CHECK(same_instance(a, beside, tune, 100.0));
+    tune.duplicate_overlap = 0.1;
+    // The precomputed overlap is what decides for verified poses ...
+    CHECK(same_instance(a, beside, tune, 100.0, 0.5));
+    CHECK_FALSE(same_instance(a, b, tune, 100.0, 0.05));
+    // ... and is ignored for an unverified one: the centres alone.
+    beside.verified = false;
+    CHECK(same_instance(a, beside, tune, 100.0));
+    CHECK(same_instance(a, beside, tune, 100.0, 0.0));
+    Hypothesis other = b;                           // another object at the same place
+    other.cand.obj_id = 2;
+    CHECK_FALSE(same_instance(a, other, tune, 100.0));
+}
+
 TEST_CASE("fit_arbiter: learns which parts tell the right pose of a conflict, bad input named",
           "[infer][select][eval]") {
     using g2l::eval::HypothesisRecord;

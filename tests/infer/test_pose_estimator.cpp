@@ -475,17 +475,18 @@ TEST_CASE("PoseEstimator: the shipped depth detector and pose model on the real 
     // What ./g2l.sh demo runs, pinned per instance near the values measured 2026-12-07 with
     // the width-32 detector (this test prints them): box IoU, translation and rotation error
     // of the refined pose against the fixture's ground truth. Margins: IoU -0.05, translation
-    // +2 mm, rotation +2 deg.
+    // +2 mm, rotation +2 deg (the mug: +8 deg, below).
     struct Pin {
         size_t frame;
         int obj_id;
-        double iou, t_mm, rot_deg;
+        double iou, t_mm, rot_deg, rot_margin;
     };
     // The mug's 16 and 114 deg are its near-symmetry: the handle is not in view, so a turn
     // about the mug's axis fits the depth as well, and the refinement keeps the one the crop's
-    // networks start from (ADD-S is what the mug is judged by).
-    const Pin pins[] = {{0, 8, 0.831, 0.47, 0.55}, {0, 14, 0.936, 4.21, 15.71},
-                        {1, 8, 0.888, 0.61, 0.66}, {1, 14, 0.749, 6.09, 113.78}};
+    // networks start from (ADD-S is what the mug is judged by). That turn is not observed, so
+    // rounding moves it: 15.7 deg in the optimised build, 17.8 under the sanitizers' flags.
+    const Pin pins[] = {{0, 8, 0.831, 0.47, 0.55, 2.0}, {0, 14, 0.936, 4.21, 15.71, 8.0},
+                        {1, 8, 0.888, 0.61, 0.66, 2.0}, {1, 14, 0.749, 6.09, 113.78, 8.0}};
     g2l::EstimatorOptions o;
     o.detector = std::string(G2L_SOURCE_DIR) + "/models/ycbv_detector.g2l";
     o.meshes = g2l::testing::fixture_dir() + "/ycbv_mini/models";
@@ -522,7 +523,7 @@ TEST_CASE("PoseEstimator: the shipped depth detector and pose model on the real 
                 if (p.frame != index || p.obj_id != inst.obj_id) continue;
                 CHECK(iou >= p.iou - 0.05);
                 CHECK(t_err <= p.t_mm + 2.0);
-                CHECK(rot <= p.rot_deg + 2.0);
+                CHECK(rot <= p.rot_deg + p.rot_margin);
                 ++checked;
             }
         }

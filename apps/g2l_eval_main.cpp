@@ -282,7 +282,8 @@ void add_options(CLI::App& app, Job& j) {
                    "its points");
     app.add_option("--hypotheses", j.hyps_path,
                    "--boxes det / file: write every hypothesis (score, verdict, rival, right, the "
-                   "score model's features, box and, when posed, the pose `est`) as JSON lines");
+                   "score model's features and the verification's counts when verified, box and, "
+                   "when posed, the pose `est`) as JSON lines");
     app.add_flag("--verbose", j.verbose, "error messages with their source location (also G2L_VERBOSE=1)");
 }
 
@@ -542,6 +543,9 @@ struct Outputs {
                       {"pose_right", h.pose_right}, {"features", h.features},
                       {"box", {h.box.x, h.box.y, h.box.w, h.box.h}}};
             if (h.posed) r["est"] = pose_json(h.est);
+            if (h.verified)
+                r["counts"] = {{"visible", h.visible}, {"inliers", h.inliers},
+                               {"footprint_cells", h.footprint_cells}};
             hyp << r.dump() << "\n";
         }
     }

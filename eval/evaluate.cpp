@@ -387,9 +387,13 @@ void Evaluation::record_hypotheses(const data::Frame& f,
                                       geom::correct_at(adds_of(hy, *g), meta_.at(hy.cand.obj_id).diameter));
             }
             rec.verified = hy.verified;
-            if (hy.verified)
+            if (hy.verified) {
                 rec.features = infer::ScoreModel::features(hy.check, hy.cand.det_score,
                                                            hy.cand.det_obj_id != hy.cand.obj_id);
+                rec.visible = hy.check.visible;
+                rec.inliers = hy.check.inliers;
+                rec.footprint_cells = int(hy.check.footprint.size());
+            }
             hyps_out_->push_back(rec);
         }
         // An accepted pose matched to no instance is a false positive; one matched to an

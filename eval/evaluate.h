@@ -173,6 +173,9 @@ struct HypothesisRecord {
     /// The pose is right for some ground-truth instance of its object (ADD-S < 0.1 d),
     /// whatever the matching: what the score model is fitted to predict.
     bool pose_right = false;
+    /// The verification's counts, when verified: visible model points with a depth reading,
+    /// those the depth explains, and the image cells they cover (the depth the pose claims).
+    int visible = 0, inliers = 0, footprint_cells = 0;
 };
 
 /// Fits the score model (logistic regression, Newton's method with an L2 penalty `l2` on the

@@ -352,6 +352,10 @@ grep '"verdict":"no pose"' "$T/hyp.jsonl" | grep -q '"est"' && fail "--hypothese
 grep '"obj_id":8,' "$T/hyp.jsonl" | awk -F'"t":\\[' '{ split($2, v, /[],]/);
     d = sqrt((v[1] + 30.6)^2 + (v[2] + 8.0)^2 + (v[3] - 592.6)^2); exit !(d < 15) }' \
     || fail "--hypotheses: object 8's est.t is not within 15 mm of the ground truth: $(cat "$T/hyp.jsonl")"
+# ... and, verified, the verification's counts: some footprint, inliers among the visible points
+grep '"obj_id":8,' "$T/hyp.jsonl" | awk -F'"counts":\\{' '{ split($2, v, /[:,}]/);
+    exit !(v[1] == "\"footprint_cells\"" && v[2] > 0 && v[4] > 0 && v[4] <= v[6]) }' \
+    || fail "--hypotheses: object 8's counts (footprint cells > 0, 0 < inliers <= visible) wrong: $(cat "$T/hyp.jsonl")"
 head -n1 "$T/res.csv" | grep -q "^scene_id,im_id,obj_id,score,R,t,time$" || fail "BOP CSV header"
 [ "$(wc -l < "$T/res.csv")" -eq 3 ] || fail "BOP CSV: expected 2 rows (image 1), got $(cat "$T/res.csv")"
 # The CSV's score is the verified one (the probability that the pose is right); the pose of

@@ -469,7 +469,7 @@ void write_score_fit(const Job& j, const std::vector<g2l::eval::HypothesisRecord
         std::ofstream f(j.fit_score);
         f << json{{"features", {"bias", "explained", "violation", "occlusion", "seg_agree",
                                 "support_x_seg_agree", "ln_det_score", "borrowed"}},
-                  {"w", sm.w}, {"arbiter_w", am.w}}
+                  {"w", sm.w}, {"arbiter_w", am.w}, {"arbiter_footprint", am.footprint}}
                  .dump(2)
           << "\n";
         G2L_CHECK(f.good(), "--fit-score '", j.fit_score, "': cannot write the file");
@@ -482,7 +482,7 @@ void write_score_fit(const Job& j, const std::vector<g2l::eval::HypothesisRecord
         print("score model w", sm.w);
         std::printf(", ");
         print("arbiter w", am.w);
-        std::printf(" (%s)\n\n", j.fit_score.c_str());
+        std::printf(", arbiter footprint = %.4f (%s)\n\n", am.footprint, j.fit_score.c_str());
     }
 }
 

@@ -393,6 +393,7 @@ void Evaluation::record_hypotheses(const data::Frame& f,
                 rec.visible = hy.check.visible;
                 rec.inliers = hy.check.inliers;
                 rec.footprint_cells = int(hy.check.footprint.size());
+                rec.footprint = hy.check.footprint;
             }
             hyps_out_->push_back(rec);
         }
@@ -959,6 +960,9 @@ infer::ArbiterModel fit_arbiter(const std::vector<HypothesisRecord>& hyps, doubl
             const HypothesisRecord& w = hyps[b + size_t(h.rival)];
             if (!h.verified || !w.verified || h.pose_right == w.pose_right) continue;
             dx.push_back(to_vec(h.features) - to_vec(w.features));
+            // The bias's difference is 0: its slot carries the footprints' ln-cells difference.
+            dx.back()[0] = infer::ArbiterModel::ln_cells(h.footprint.size()) -
+                           infer::ArbiterModel::ln_cells(w.footprint.size());
             y.push_back(h.pose_right ? 1.0 : 0.0);
         }
         b = e;
@@ -968,7 +972,8 @@ infer::ArbiterModel fit_arbiter(const std::vector<HypothesisRecord>& hyps, doubl
               "of the two poses is right, got ", n);
     infer::ArbiterModel m;
     m.w = fit_logistic(dx, y, l2, 0);
-    m.w[0] = 0;  // the bias's difference is 0: its weight is never fitted
+    m.footprint = m.w[0];  // slot 0 held the ln-cells difference
+    m.w[0] = 0;
     return m;
 }
 

@@ -310,10 +310,13 @@ double ScoreModel::probability(const geom::Verification& v, double det_score,
     return sigmoid(dot(w, features(v, det_score, borrowed)));
 }
 
-double ArbiterModel::prefer(const ScoreModel::Features& a, const ScoreModel::Features& b) const {
+double ArbiterModel::ln_cells(size_t cells) { return std::log(double(std::max<size_t>(cells, 1))); }
+
+double ArbiterModel::prefer(const ScoreModel::Features& a, const ScoreModel::Features& b,
+                            double ln_cells_a, double ln_cells_b) const {
     ScoreModel::Features d;
     for (int k = 0; k < ScoreModel::kFeatures; ++k) d[size_t(k)] = a[size_t(k)] - b[size_t(k)];
-    return ScoreModel::sigmoid(ScoreModel::dot(w, d));
+    return ScoreModel::sigmoid(ScoreModel::dot(w, d) + footprint * (ln_cells_a - ln_cells_b));
 }
 
 const char* to_string(Verdict v) {
@@ -502,7 +505,9 @@ std::vector<Hypothesis> select_hypotheses(std::vector<Hypothesis> hs,
             const Verdict c = conflict(w);
             if (c == Verdict::accepted) continue;
             if (tune.arbitrate && h.verified && w.verified && !h.fill_in && !w.fill_in &&
-                tune.arbiter.prefer(features[i], features[k]) > 0.5) {
+                tune.arbiter.prefer(features[i], features[k],
+                                    ArbiterModel::ln_cells(h.check.footprint.size()),
+                                    ArbiterModel::ln_cells(w.check.footprint.size())) > 0.5) {
                 beaten.emplace_back(k, c);
                 continue;
             }
@@ -540,7 +545,8 @@ std::vector<Hypothesis> select_hypotheses(std::vector<Hypothesis> hs,
     }
     // A pose that lost to one the arbiter dropped later is tried again, so that every rival
     // named is a kept pose. Each pose kept this way outranks (by the arbiter's order, w .
-    // features) every pose it drops, so the passes end; they run only after a replacement.
+    // features + footprint x ln cells) every pose it drops, so the passes end; they run only
+    // after a replacement.
     for (bool changed = true; changed;) {
         changed = false;
         for (const size_t i : order) {

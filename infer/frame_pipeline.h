@@ -149,20 +149,33 @@ struct ScoreModel {
 
 /// Which of two poses that claim the same depth (an overlap, or a duplicate of one object) is
 /// the right one, when one of them is: P(a right | exactly one of a, b right) =
-/// sigmoid(w . (features(a) - features(b))), the score model's features (ScoreModel::features;
-/// the bias cancels, w[0] = 0). The score model answers "is this pose right?" over every
+/// sigmoid(w . (features(a) - features(b)) + footprint x ln(cells(a) / cells(b))), the score
+/// model's features (ScoreModel::features; the bias cancels, w[0] = 0) and the cells of depth
+/// each claims. The score model answers "is this pose right?" over every
 /// hypothesis, most of them phantoms a weak peak makes, so the detector's heat weighs most
 /// there; between two poses of the same depth the depth's own evidence (the explained share,
 /// the violations, the segmentation's agreement) weighs more. Fitted on renders only, on the
 /// overlaps and duplicates where exactly one pose was right (`g2l_eval --fit-score`,
 /// docs/results.md).
 struct ArbiterModel {
-    /// Fitted 2026-12-07 on the conflicts of 60 renders (configs/scenes/
-    /// ycbv_table_blocks.json, seed 31; the shipped detector and pose model), the score
-    /// order's conflicts (the fit's run does not arbitrate: EvalOptions::arbitrate).
-    ScoreModel::Features w{{0, 0.8527, -0.8595, 0.0068, 1.1229, 2.2347, 1.6703, -0.1691}};
-    /// P(a right | exactly one right) for two verified poses' features.
-    double prefer(const ScoreModel::Features& a, const ScoreModel::Features& b) const;
+    /// Fitted 2026-12-08 on the conflicts of 60 renders (configs/scenes/
+    /// ycbv_table_blocks.json, seed 31; the shipped width-32 detector and pose model), the
+    /// score order's conflicts (the fit's run does not arbitrate: EvalOptions::arbitrate),
+    /// with the footprint term (docs/experiments.md, "How much depth a pose claims").
+    ScoreModel::Features w{{0, 1.0589, -0.8717, -0.1872, 1.1680, 2.3982, 1.3249, -0.2940}};
+    /// The weight of ln(footprint cells), the depth a pose claims in absolute terms (the
+    /// features say how much of its *model* the depth explains, not how much of the *depth* it
+    /// explains): of two poses claiming the same depth, the one that claims more explains what
+    /// the other does and more — a box posed on one face of a larger object claims a part of
+    /// that object's depth, the object all of the box's.
+    double footprint = 1.3994;
+    /// ln(cells) of a footprint (geom::Verification::footprint), ln 1 = 0 for an empty one.
+    static double ln_cells(size_t cells);
+    /// P(a right | exactly one right) for two verified poses' features and footprints' ln_cells.
+    /// A difference of per-pose strengths (w . features + footprint x ln_cells), so the
+    /// preference is an order: the selection's re-tries end.
+    double prefer(const ScoreModel::Features& a, const ScoreModel::Features& b,
+                  double ln_cells_a = 0, double ln_cells_b = 0) const;
 };
 
 /// The fixed settings of the hypotheses road (spec §16; what a user may change is in

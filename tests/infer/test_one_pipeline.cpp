@@ -297,6 +297,7 @@ TEST_CASE("FramePipeline: candidates spend the budget on each object's best peak
     HypothesisTuning odd = shipped;
     odd.arbiter.w = {};
     odd.arbiter.w[6] = -10.0;  // ln det_score
+    odd.arbiter.footprint = 0;
     pipe.set_tuning(odd);
     pipe.hypotheses(depth.data(), K, {b, a}, &hs);
     REQUIRE(hs.size() == 2);

@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT
 // The hypotheses road's selection (infer::select_hypotheses) on hand-made verified hypotheses:
 // the best score wins a conflict unless the arbiter prefers the depth's evidence of a lower
-// one; duplicates and overlaps name their rival in the returned order; fill-ins never displace.
-// And the arbiter's fit (eval::fit_arbiter) on made-up conflicts.
+// one (its features, and how much depth each claims); duplicates and overlaps name their rival
+// in the returned order; fill-ins never displace. And the arbiter's fit (eval::fit_arbiter) on
+// made-up conflicts.
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -51,8 +52,10 @@ std::vector<int32_t> cells(int from, int to) {
     return v;
 }
 
+// The arbiter's order: w . features + footprint x ln(footprint cells).
 double strength(const HypothesisTuning& tune, const Hypothesis& h) {
-    return ScoreModel::dot(tune.arbiter.w, ScoreModel::features(h.check, h.cand.det_score, false));
+    return ScoreModel::dot(tune.arbiter.w, ScoreModel::features(h.check, h.cand.det_score, false)) +
+           tune.arbiter.footprint * ArbiterModel::ln_cells(h.check.footprint.size());
 }
 
 }  // namespace
@@ -67,7 +70,8 @@ TEST_CASE("select_hypotheses: the arbiter lets the depth's evidence beat a highe
     const Hypothesis right = verified(tune, 2, {5, 0, 600}, 0.3, 1.0, 0.0, 1.0, cells(10, 100));
     REQUIRE(loud.score > right.score);
     REQUIRE(tune.arbiter.prefer(ScoreModel::features(right.check, 0.3, false),
-                                ScoreModel::features(loud.check, 0.9, false)) > 0.5);
+                                ScoreModel::features(loud.check, 0.9, false),
+                                ArbiterModel::ln_cells(90), ArbiterModel::ln_cells(100)) > 0.5);
     CHECK(strength(tune, right) > strength(tune, loud));
     // Elsewhere in the frame, a third pose that conflicts with neither.
     const Hypothesis other = verified(tune, 3, {200, 0, 600}, 0.5, 0.9, 0.0, 0.9, cells(500, 560));
@@ -111,6 +115,40 @@ TEST_CASE("select_hypotheses: the arbiter lets the depth's evidence beat a highe
     CHECK(out[0].accepted());
     CHECK(out[1].verdict == Verdict::overlap);
     CHECK(out[1].rival == 0);
+}
+
+TEST_CASE("select_hypotheses: of two poses claiming the same depth, the arbiter prefers the one "
+          "that claims more of it", "[infer][select]") {
+    HypothesisTuning tune;
+    REQUIRE(tune.arbiter.footprint > 0);
+    CHECK(ArbiterModel::ln_cells(0) == 0.0);
+    CHECK(ArbiterModel::ln_cells(1) == 0.0);
+    CHECK(ArbiterModel::ln_cells(400) == Approx(std::log(400.0)));
+    // A box posed on one face of a larger object (cells 100-179 of its 0-199: 40 % of the
+    // object's depth, above overlap_frac), from a louder peak: the depth explains both models
+    // alike, but the object claims all of the box's depth and more than as much again.
+    const Hypothesis box = verified(tune, 1, {0, 0, 600}, 0.6, 0.8, 0.05, 0.8, cells(100, 180));
+    const Hypothesis object = verified(tune, 2, {10, 0, 600}, 0.3, 0.8, 0.05, 0.8, cells(0, 200));
+    REQUIRE(box.score > object.score);
+    const double p = tune.arbiter.prefer(ScoreModel::features(object.check, 0.3, false),
+                                         ScoreModel::features(box.check, 0.6, false),
+                                         ArbiterModel::ln_cells(200), ArbiterModel::ln_cells(80));
+    CHECK(p > 0.5);
+    // The preference is a difference of strengths: P(a over b) = sigmoid(s(a) - s(b)).
+    CHECK(p == Approx(ScoreModel::sigmoid(strength(tune, object) - strength(tune, box))));
+    auto out = g2l::infer::select_hypotheses({box, object}, tune, kDiameter, kK, 0.0);
+    REQUIRE(out.size() == 2);
+    CHECK(out[0].cand.obj_id == 2);
+    CHECK(out[0].accepted());
+    CHECK(out[1].verdict == Verdict::overlap);
+    CHECK(out[1].rival == 0);
+    // Without the footprint term the louder peak keeps the depth (the features tie but for
+    // the detector's score).
+    HypothesisTuning blind = tune;
+    blind.arbiter.footprint = 0;
+    out = g2l::infer::select_hypotheses({box, object}, blind, kDiameter, kK, 0.0);
+    CHECK(out[0].cand.obj_id == 1);
+    CHECK(out[1].verdict == Verdict::overlap);
 }
 
 TEST_CASE("select_hypotheses: a pose that lost to one the arbiter dropped later is tried again",
@@ -285,6 +323,29 @@ TEST_CASE("fit_arbiter: learns which parts tell the right pose of a conflict, ba
     // prefer is a probability, symmetric: P(a over b) + P(b over a) = 1.
     CHECK(am.prefer(hs[0].features, hs[1].features) + am.prefer(hs[1].features, hs[0].features) ==
           Approx(1.0));
+
+    // Footprints unknown to the records (all empty): the footprint term has nothing to fit.
+    CHECK(am.footprint == Approx(0.0).margin(1e-9));
+
+    // Features that say nothing and footprints that do: the right pose of each pair claims
+    // more depth (cells 0-119 against 0-59, or the other way round with noise in both).
+    std::vector<HypothesisRecord> fp = hs;
+    for (size_t i = 0; i < fp.size(); ++i) {
+        fp[i].features = {1.0, 0.5 + 0.2 * rnd(), 0.05, 0.1, 0.9, 0.5, std::log(0.2 + 0.6 * rnd()), 0.0};
+        const int n = fp[i].pose_right ? 100 + int(40 * rnd()) : 40 + int(40 * rnd());
+        fp[i].footprint.clear();
+        for (int c = 0; c < n; ++c) fp[i].footprint.push_back(c);
+    }
+    const ArbiterModel af = g2l::eval::fit_arbiter(fp);
+    CHECK(af.footprint > 2.0);
+    CHECK(std::abs(af.w[1]) < 0.5 * af.footprint);
+    agree = 0;
+    for (size_t i = 1; i < fp.size(); i += 2)
+        agree += (af.prefer(fp[i].features, fp[i - 1].features,
+                            ArbiterModel::ln_cells(fp[i].footprint.size()),
+                            ArbiterModel::ln_cells(fp[i - 1].footprint.size())) > 0.5) ==
+                 fp[i].pose_right;
+    CHECK(agree == 60);
 
     // Too few conflicts with one right pose, or a rival outside its frame: named.
     std::vector<HypothesisRecord> few(hs.begin(), hs.begin() + 10);

@@ -393,7 +393,6 @@ void Evaluation::record_hypotheses(const data::Frame& f,
                 rec.visible = hy.check.visible;
                 rec.inliers = hy.check.inliers;
                 rec.footprint_cells = int(hy.check.footprint.size());
-                rec.footprint = hy.check.footprint;
             }
             hyps_out_->push_back(rec);
         }
@@ -961,8 +960,8 @@ infer::ArbiterModel fit_arbiter(const std::vector<HypothesisRecord>& hyps, doubl
             if (!h.verified || !w.verified || h.pose_right == w.pose_right) continue;
             dx.push_back(to_vec(h.features) - to_vec(w.features));
             // The bias's difference is 0: its slot carries the footprints' ln-cells difference.
-            dx.back()[0] = infer::ArbiterModel::ln_cells(h.footprint.size()) -
-                           infer::ArbiterModel::ln_cells(w.footprint.size());
+            dx.back()[0] = infer::ArbiterModel::ln_cells(size_t(h.footprint_cells)) -
+                           infer::ArbiterModel::ln_cells(size_t(w.footprint_cells));
             y.push_back(h.pose_right ? 1.0 : 0.0);
         }
         b = e;

@@ -176,9 +176,6 @@ struct HypothesisRecord {
     /// The verification's counts, when verified: visible model points with a depth reading,
     /// those the depth explains, and the image cells they cover (the depth the pose claims).
     int visible = 0, inliers = 0, footprint_cells = 0;
-    /// The verification's footprint (geom::Verification::footprint), when verified: what
-    /// fit_arbiter's footprint term is computed from.
-    std::vector<int32_t> footprint;
 };
 
 /// Fits the score model (logistic regression, Newton's method with an L2 penalty `l2` on the
@@ -190,7 +187,7 @@ infer::ScoreModel fit_score_model(const std::vector<HypothesisRecord>& hyps, dou
 /// differences, Newton's method, L2 penalty `l2`) to the conflicts among the hypotheses: each
 /// duplicate or overlap and the pose that beat it (its `rival`, an index within its frame's
 /// records, which lie together as g2l_eval records them), both verified, exactly one of the two
-/// right (pose_right); the difference of their footprints' ln cells (ArbiterModel::footprint)
+/// right (pose_right); the difference of their ln footprint_cells (ArbiterModel::footprint)
 /// is fitted with the features' differences. Throws g2l::Error with fewer than 10
 /// such pairs or with a rival index outside its frame.
 infer::ArbiterModel fit_arbiter(const std::vector<HypothesisRecord>& hyps, double l2 = 1e-2);

@@ -480,10 +480,13 @@ std::vector<Hypothesis> select_hypotheses(std::vector<Hypothesis> hs,
     });
     std::vector<size_t> kept;
     std::vector<ScoreModel::Features> features(hs.size());  // the arbiter's inputs, once a pose
+    std::vector<double> ln_cells(hs.size(), 0.0);
     for (size_t i = 0; i < hs.size(); ++i)
-        if (hs[i].verified)
+        if (hs[i].verified) {
             features[i] = ScoreModel::features(hs[i].check, hs[i].cand.det_score,
                                                hs[i].cand.det_obj_id != hs[i].cand.obj_id);
+            ln_cells[i] = ArbiterModel::ln_cells(hs[i].check.footprint.size());
+        }
     // Keeps hypothesis i unless a kept pose is the same instance or claims the same depth and
     // the arbiter does not prefer i to it; the kept poses i beats are dropped. Whether kept.
     auto keep = [&](size_t i) {
@@ -505,9 +508,7 @@ std::vector<Hypothesis> select_hypotheses(std::vector<Hypothesis> hs,
             const Verdict c = conflict(w);
             if (c == Verdict::accepted) continue;
             if (tune.arbitrate && h.verified && w.verified && !h.fill_in && !w.fill_in &&
-                tune.arbiter.prefer(features[i], features[k],
-                                    ArbiterModel::ln_cells(h.check.footprint.size()),
-                                    ArbiterModel::ln_cells(w.check.footprint.size())) > 0.5) {
+                tune.arbiter.prefer(features[i], features[k], ln_cells[i], ln_cells[k]) > 0.5) {
                 beaten.emplace_back(k, c);
                 continue;
             }

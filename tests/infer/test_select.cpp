@@ -324,17 +324,15 @@ TEST_CASE("fit_arbiter: learns which parts tell the right pose of a conflict, ba
     CHECK(am.prefer(hs[0].features, hs[1].features) + am.prefer(hs[1].features, hs[0].features) ==
           Approx(1.0));
 
-    // Footprints unknown to the records (all empty): the footprint term has nothing to fit.
+    // Footprint sizes unknown to the records (all 0): the footprint term has nothing to fit.
     CHECK(am.footprint == Approx(0.0).margin(1e-9));
 
     // Features that say nothing and footprints that do: the right pose of each pair claims
-    // more depth (cells 0-119 against 0-59, or the other way round with noise in both).
+    // more depth (100-139 cells against 40-79).
     std::vector<HypothesisRecord> fp = hs;
     for (size_t i = 0; i < fp.size(); ++i) {
         fp[i].features = {1.0, 0.5 + 0.2 * rnd(), 0.05, 0.1, 0.9, 0.5, std::log(0.2 + 0.6 * rnd()), 0.0};
-        const int n = fp[i].pose_right ? 100 + int(40 * rnd()) : 40 + int(40 * rnd());
-        fp[i].footprint.clear();
-        for (int c = 0; c < n; ++c) fp[i].footprint.push_back(c);
+        fp[i].footprint_cells = fp[i].pose_right ? 100 + int(40 * rnd()) : 40 + int(40 * rnd());
     }
     const ArbiterModel af = g2l::eval::fit_arbiter(fp);
     CHECK(af.footprint > 2.0);
@@ -342,8 +340,8 @@ TEST_CASE("fit_arbiter: learns which parts tell the right pose of a conflict, ba
     agree = 0;
     for (size_t i = 1; i < fp.size(); i += 2)
         agree += (af.prefer(fp[i].features, fp[i - 1].features,
-                            ArbiterModel::ln_cells(fp[i].footprint.size()),
-                            ArbiterModel::ln_cells(fp[i - 1].footprint.size())) > 0.5) ==
+                            ArbiterModel::ln_cells(size_t(fp[i].footprint_cells)),
+                            ArbiterModel::ln_cells(size_t(fp[i - 1].footprint_cells))) > 0.5) ==
                  fp[i].pose_right;
     CHECK(agree == 60);
 
